@@ -1,0 +1,221 @@
+//! What the core noticed about a mesh: counts, with the first few offending indices of each.
+//!
+//! Everything here is gathered in one pass over triangles and one over vertices, cheap enough to
+//! be always on.
+
+use super::math::{Mesh, cross, dot, is_finite3, length, same_position, sub};
+use super::{Method, NormalMode, Options, UvOrigin};
+use rayon::prelude::*;
+
+/// How many offending indices a [`Tally`] keeps.
+pub const SAMPLE_SIZE: usize = 8;
+
+/// A count of offending items and the first few of their indices, ascending.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Tally {
+    pub count: u64,
+    pub first: Vec<u32>,
+}
+
+impl Tally {
+    pub fn add(&mut self, index: u32) {
+        self.count += 1;
+        if self.first.len() < SAMPLE_SIZE {
+            self.first.push(index);
+        }
+    }
+
+    /// Appends a tally of later items.
+    pub fn append(&mut self, later: &Tally) {
+        self.count += later.count;
+        let room = SAMPLE_SIZE - self.first.len();
+        self.first.extend(later.first.iter().take(room));
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+/// Corners whose tangent had to be replaced by a fallback, and why.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FallbackCounts {
+    /// All replaced corners (corner = position in the index buffer).
+    pub corners: Tally,
+    /// The method gave the corner no tangent at all (only degenerate or unmapped triangles meet
+    /// at its vertex).
+    pub unassigned: u64,
+    /// The tangent was zero (the contributions cancelled or had no length in the normal's plane).
+    pub zero_length: u64,
+    /// The tangent held NaN or infinity.
+    pub non_finite: u64,
+    /// The tangent was not unit length or not orthogonal to the normal (usually because the
+    /// input normal was not unit length).
+    pub not_orthogonal: u64,
+}
+
+/// The diagnostics record of one [`super::generate`] call.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Diagnostics {
+    pub method: Method,
+    pub triangles: u64,
+    /// Vertices before and after the split; `vertices_added` is their difference.
+    pub vertices_in: u64,
+    pub vertices_out: u64,
+    pub vertices_added: u64,
+    /// Set when the mesh had no normals and they were generated.
+    pub generated_normals: Option<NormalMode>,
+    /// Triangles with two corners at exactly the same position.
+    pub duplicate_position_triangles: Tally,
+    /// Other triangles whose area is negligible against their longest edge (slivers, collinear).
+    pub zero_area_triangles: Tally,
+    /// Triangles whose texture-coordinate area is zero or negligible.
+    pub zero_uv_area_triangles: Tally,
+    /// Triangles whose texture coordinates wind the other way (mirrored UVs), given the UV
+    /// origin convention.
+    pub mirrored_uv_triangles: Tally,
+    /// Triangles with a NaN or infinite position, normal or texture coordinate.
+    pub non_finite_triangles: Tally,
+    /// Vertices whose normal is zero.
+    pub zero_normals: Tally,
+    /// Vertices whose normal is more than 0.1% away from unit length (but not zero).
+    pub non_unit_normals: Tally,
+    /// Vertices whose corners received tangents of both handedness (these are split).
+    pub handedness_flip_vertices: Tally,
+    /// Triangles whose three corners do not share one `w`.
+    pub mixed_handedness_triangles: Tally,
+    pub fallback_tangents: FallbackCounts,
+}
+
+/// Relative size below which an area counts as zero: the triangle's height is under 1e-7 of its
+/// longest edge, about where f32 positions stop resolving it.
+const RELATIVE_AREA_EPSILON: f32 = 1e-7;
+
+#[derive(Default)]
+struct TriangleTallies {
+    duplicate: Tally,
+    zero_area: Tally,
+    zero_uv: Tally,
+    mirrored: Tally,
+    non_finite: Tally,
+}
+
+impl TriangleTallies {
+    fn append(mut self, later: TriangleTallies) -> TriangleTallies {
+        self.duplicate.append(&later.duplicate);
+        self.zero_area.append(&later.zero_area);
+        self.zero_uv.append(&later.zero_uv);
+        self.mirrored.append(&later.mirrored);
+        self.non_finite.append(&later.non_finite);
+        self
+    }
+}
+
+fn classify_triangles(
+    mesh: &Mesh<'_>,
+    uv_origin: UvOrigin,
+    range: std::ops::Range<usize>,
+) -> TriangleTallies {
+    let mut tallies = TriangleTallies::default();
+    for t in range {
+        let [a, b, c] = mesh.triangle(t);
+        let p = [mesh.positions[a], mesh.positions[b], mesh.positions[c]];
+        let n = [mesh.normals[a], mesh.normals[b], mesh.normals[c]];
+        let uv = [mesh.uv(a), mesh.uv(b), mesh.uv(c)];
+        let index = t as u32;
+        let finite = p.iter().chain(n.iter()).all(|&v| is_finite3(v))
+            && uv.iter().flatten().all(|x| x.is_finite());
+        if !finite {
+            tallies.non_finite.add(index);
+            continue;
+        }
+        if same_position(p[0], p[1]) || same_position(p[1], p[2]) || same_position(p[2], p[0]) {
+            tallies.duplicate.add(index);
+        } else {
+            let e = [sub(p[1], p[0]), sub(p[2], p[0]), sub(p[2], p[1])];
+            let longest = e.iter().map(|&e| dot(e, e)).fold(0.0f32, f32::max);
+            if length(cross(e[0], e[1])) <= RELATIVE_AREA_EPSILON * longest {
+                tallies.zero_area.add(index);
+            }
+        }
+        if mesh.uvs.is_some() {
+            let d1 = [uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]];
+            let d2 = [uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]];
+            let d3 = [uv[2][0] - uv[1][0], uv[2][1] - uv[1][1]];
+            let signed = d1[0] * d2[1] - d1[1] * d2[0];
+            let longest = [d1, d2, d3]
+                .iter()
+                .map(|d| d[0] * d[0] + d[1] * d[1])
+                .fold(0.0f32, f32::max);
+            if signed.abs() <= RELATIVE_AREA_EPSILON * longest {
+                tallies.zero_uv.add(index);
+            } else {
+                // With the origin at the top left (glTF), v runs downwards, so an unmirrored
+                // front face has a negative raw UV area.
+                let mirrored = match uv_origin {
+                    UvOrigin::TopLeft => signed > 0.0,
+                    UvOrigin::BottomLeft => signed < 0.0,
+                };
+                if mirrored {
+                    tallies.mirrored.add(index);
+                }
+            }
+        }
+    }
+    tallies
+}
+
+/// Input-side diagnostics: triangle and normal checks. Output-side counts (split, handedness,
+/// fallbacks) are filled in later by the steps that see them.
+pub(crate) fn analyze(mesh: &Mesh<'_>, options: &Options) -> Diagnostics {
+    let triangle_count = mesh.triangle_count();
+    const CHUNK: usize = 16384;
+    let chunk_count = triangle_count.div_ceil(CHUNK);
+    let chunk = |i: usize| {
+        classify_triangles(
+            mesh,
+            options.uv_origin,
+            i * CHUNK..((i + 1) * CHUNK).min(triangle_count),
+        )
+    };
+    let tallies = if options.parallel {
+        (0..chunk_count)
+            .into_par_iter()
+            .map(chunk)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(TriangleTallies::default(), TriangleTallies::append)
+    } else {
+        (0..chunk_count)
+            .map(chunk)
+            .fold(TriangleTallies::default(), TriangleTallies::append)
+    };
+
+    let mut zero_normals = Tally::default();
+    let mut non_unit_normals = Tally::default();
+    for (v, &n) in mesh.normals.iter().enumerate() {
+        if !is_finite3(n) {
+            continue;
+        }
+        let len = length(n);
+        if len == 0.0 {
+            zero_normals.add(v as u32);
+        } else if (len - 1.0).abs() > 1e-3 {
+            non_unit_normals.add(v as u32);
+        }
+    }
+
+    Diagnostics {
+        method: options.method,
+        triangles: triangle_count as u64,
+        vertices_in: mesh.vertex_count() as u64,
+        duplicate_position_triangles: tallies.duplicate,
+        zero_area_triangles: tallies.zero_area,
+        zero_uv_area_triangles: tallies.zero_uv,
+        mirrored_uv_triangles: tallies.mirrored,
+        non_finite_triangles: tallies.non_finite,
+        zero_normals,
+        non_unit_normals,
+        ..Diagnostics::default()
+    }
+}

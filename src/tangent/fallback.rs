@@ -1,0 +1,171 @@
+//! The last line of defence: every corner leaves the core with a finite, unit tangent orthogonal
+//! to its normal.
+//!
+//! The rule, in order, for a corner whose tangent fails that test:
+//! 1. if the tangent is finite and keeps some length (> 1e-3) in the plane of the normal, it is
+//!    projected into that plane and normalized (this fixes tangents computed against a normal
+//!    that was not unit length);
+//! 2. otherwise the corner's own triangle's dP/du, projected into the plane, if it has length;
+//! 3. otherwise the normal crossed with its least-aligned world axis (see `any_orthogonal`).
+//!
+//! "Its normal" is the input normal, normalized; where that is zero or not finite, the face
+//! normal of the corner's triangle; where that fails too, +Z.
+//!
+//! A corner that had no tangent at all takes its orientation from its own triangle's UV winding
+//! (the reference would leave it at "not preserving").
+
+use super::diagnostics::FallbackCounts;
+use super::math::{
+    CornerTangent, Mesh, any_orthogonal, cross, dot, is_finite3, length, reject, scale, sub,
+};
+use rayon::prelude::*;
+
+/// Tolerances a tangent must meet to be passed through untouched. They are tighter than the
+/// guarantees we document (unit within 1e-5, orthogonal within 1e-4) to leave room for rounding.
+const UNIT_TOLERANCE: f32 = 4e-6;
+const ORTHOGONAL_TOLERANCE: f32 = 4e-5;
+
+/// The normal a corner's tangent must be orthogonal to.
+pub(crate) fn effective_normal(mesh: &Mesh<'_>, corner: usize) -> [f32; 3] {
+    let n = mesh.normals[mesh.indices[corner] as usize];
+    if let Some(unit) = unit(n) {
+        return unit;
+    }
+    let [a, b, c] = mesh.triangle(corner / 3);
+    let face = cross(
+        sub(mesh.positions[b], mesh.positions[a]),
+        sub(mesh.positions[c], mesh.positions[a]),
+    );
+    unit(face).unwrap_or([0.0, 0.0, 1.0])
+}
+
+fn unit(v: [f32; 3]) -> Option<[f32; 3]> {
+    if !is_finite3(v) {
+        return None;
+    }
+    // Scale first so that tiny and huge vectors normalize without underflow or overflow.
+    let largest = v[0].abs().max(v[1].abs()).max(v[2].abs());
+    if largest == 0.0 || !largest.is_normal() {
+        return None;
+    }
+    let v = scale(v, 1.0 / largest);
+    let len = length(v);
+    Some(scale(v, 1.0 / len))
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Problem {
+    Unassigned,
+    ZeroLength,
+    NonFinite,
+    NotOrthogonal,
+}
+
+fn check(corner: &CornerTangent, normal: [f32; 3]) -> Option<Problem> {
+    if !corner.assigned {
+        return Some(Problem::Unassigned);
+    }
+    let t = corner.tangent;
+    if !is_finite3(t) {
+        return Some(Problem::NonFinite);
+    }
+    let len2 = dot(t, t);
+    if len2 < 1e-12 {
+        return Some(Problem::ZeroLength);
+    }
+    if (len2 - 1.0).abs() > 2.0 * UNIT_TOLERANCE || dot(t, normal).abs() > ORTHOGONAL_TOLERANCE {
+        return Some(Problem::NotOrthogonal);
+    }
+    None
+}
+
+/// Projects `v` into the plane of the unit `normal` and normalizes it, if enough is left.
+fn in_plane(v: [f32; 3], normal: [f32; 3]) -> Option<[f32; 3]> {
+    let v = unit(v)?;
+    let p = reject(v, normal);
+    let len = length(p);
+    if len > 1e-3 {
+        // Twice: one projection of a nearly parallel vector can leave a residue of the normal.
+        unit(reject(scale(p, 1.0 / len), normal))
+    } else {
+        None
+    }
+}
+
+/// The triangle's dP/du and the sign of its UV area.
+fn triangle_tangent(mesh: &Mesh<'_>, triangle: usize) -> ([f32; 3], f32) {
+    let [a, b, c] = mesh.triangle(triangle);
+    let (p0, p1, p2) = (mesh.positions[a], mesh.positions[b], mesh.positions[c]);
+    let (t0, t1, t2) = (mesh.uv(a), mesh.uv(b), mesh.uv(c));
+    let (e1, e2) = (sub(p1, p0), sub(p2, p0));
+    let (du1, dv1, du2, dv2) = (t1[0] - t0[0], t1[1] - t0[1], t2[0] - t0[0], t2[1] - t0[1]);
+    let det = du1 * dv2 - dv1 * du2;
+    let s = sub(scale(e1, dv2), scale(e2, dv1));
+    let sign = if det > 0.0 {
+        1.0
+    } else if det < 0.0 {
+        -1.0
+    } else {
+        0.0
+    };
+    (scale(s, sign), det)
+}
+
+fn repair_corner(mesh: &Mesh<'_>, corner: usize, tangent: &mut CornerTangent) -> Option<Problem> {
+    let normal = effective_normal(mesh, corner);
+    let problem = check(tangent, normal)?;
+    let (own, det) = triangle_tangent(mesh, corner / 3);
+    let projected = match problem {
+        Problem::NotOrthogonal => in_plane(tangent.tangent, normal),
+        _ => None,
+    };
+    let replacement = projected
+        .or_else(|| in_plane(own, normal))
+        .unwrap_or_else(|| any_orthogonal(normal));
+    if problem == Problem::Unassigned {
+        tangent.orientation_preserving = det > 0.0;
+    }
+    tangent.tangent = replacement;
+    tangent.assigned = true;
+    Some(problem)
+}
+
+/// Replaces every invalid tangent and counts what was replaced.
+pub(crate) fn repair(
+    mesh: &Mesh<'_>,
+    corners: &mut [CornerTangent],
+    parallel: bool,
+) -> FallbackCounts {
+    const CHUNK: usize = 16384;
+    let run = |(chunk_index, chunk): (usize, &mut [CornerTangent])| {
+        let mut counts = FallbackCounts::default();
+        for (k, tangent) in chunk.iter_mut().enumerate() {
+            let corner = chunk_index * CHUNK + k;
+            if let Some(problem) = repair_corner(mesh, corner, tangent) {
+                counts.corners.add(corner as u32);
+                match problem {
+                    Problem::Unassigned => counts.unassigned += 1,
+                    Problem::ZeroLength => counts.zero_length += 1,
+                    Problem::NonFinite => counts.non_finite += 1,
+                    Problem::NotOrthogonal => counts.not_orthogonal += 1,
+                }
+            }
+        }
+        counts
+    };
+    let parts: Vec<FallbackCounts> = if parallel {
+        corners.par_chunks_mut(CHUNK).enumerate().map(run).collect()
+    } else {
+        corners.chunks_mut(CHUNK).enumerate().map(run).collect()
+    };
+    parts
+        .into_iter()
+        .fold(FallbackCounts::default(), |mut all, part| {
+            all.corners.append(&part.corners);
+            all.unassigned += part.unassigned;
+            all.zero_length += part.zero_length;
+            all.non_finite += part.non_finite;
+            all.not_orthogonal += part.not_orthogonal;
+            all
+        })
+}

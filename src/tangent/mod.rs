@@ -1,0 +1,356 @@
+//! The tangent-space core: plain slices in, per-corner tangents, a split plan and diagnostics out.
+//!
+//! Nothing here knows about files, glTF or HTTP. Every allocation is sized by the length of the
+//! input slices, never by a count read from a file, and no input, however broken, makes it panic.
+//!
+//! Three methods are offered (see [`Method`]):
+//! - [`Method::MikkTSpace`] (the default) reproduces the MikkTSpace reference: the same welding,
+//!   orientation groups, projection and angle weighting, corner for corner.
+//! - [`Method::Fast`] is the classic per-triangle dP/du accumulation (Lengyel), still split by
+//!   handedness.
+//! - [`Method::Axis`] needs no texture coordinates: it builds a tangent from the normal and the
+//!   world axis least aligned with it.
+//!
+//! Whatever the method, every emitted tangent is finite, unit length, orthogonal to its
+//! (normalized) normal, with `w` exactly ±1. Where the method itself could not produce such a
+//! tangent the corner gets a documented fallback (see [`fallback`]) and is counted in
+//! [`Diagnostics::fallback_tangents`].
+
+mod axis;
+pub mod diagnostics;
+mod fallback;
+mod fast;
+mod math;
+mod mikktspace;
+mod normals;
+mod split;
+mod weld;
+
+pub use diagnostics::{Diagnostics, FallbackCounts, Tally};
+pub use split::SplitPlan;
+
+use std::fmt;
+
+/// How tangents are computed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// MikkTSpace, as the glTF specification recommends and as normal-map bakers assume.
+    #[default]
+    MikkTSpace,
+    /// Per-triangle dP/du accumulated per welded vertex (area or angle weighted), Gram–Schmidt
+    /// against the normal. Faster, smooth, but not what bakers use.
+    Fast,
+    /// No texture coordinates needed: the normal crossed with its least-aligned world axis.
+    Axis,
+}
+
+impl Method {
+    /// The name used on the command line, in query strings and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::MikkTSpace => "mikktspace",
+            Method::Fast => "fast",
+            Method::Axis => "axis",
+        }
+    }
+
+    /// Parses a method name as accepted on the command line and in query strings.
+    pub fn from_name(name: &str) -> Option<Method> {
+        match name {
+            "mikktspace" | "mikk" => Some(Method::MikkTSpace),
+            "fast" => Some(Method::Fast),
+            "axis" => Some(Method::Axis),
+            _ => None,
+        }
+    }
+}
+
+/// Where the texture-coordinate origin lies, which decides the sign of `w`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum UvOrigin {
+    /// glTF: origin at the top left, v grows downwards. Tangents are computed on the raw UVs and
+    /// `w` is negated, as three.js, glTF-Transform and Blender's exporter do.
+    #[default]
+    TopLeft,
+    /// OpenGL and OBJ: origin at the bottom left, v grows upwards. `w` is used as computed.
+    BottomLeft,
+}
+
+/// How [`Method::Fast`] weights each triangle's contribution at a vertex.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Weighting {
+    /// By the triangle's corner angle at the vertex (insensitive to tessellation).
+    #[default]
+    Angle,
+    /// By the triangle's area (the unnormalized cross product).
+    Area,
+}
+
+/// How normals are made when the mesh has none.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NormalMode {
+    /// One normal per triangle, as the glTF specification requires for meshes without normals.
+    Flat,
+    /// Angle-weighted vertex normals, averaged across edges whose faces meet at less than
+    /// `crease_degrees`; sharper edges stay hard.
+    SmoothByAngle { crease_degrees: f32 },
+}
+
+impl Default for NormalMode {
+    fn default() -> Self {
+        NormalMode::Flat
+    }
+}
+
+/// Options for [`generate`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Options {
+    pub method: Method,
+    pub uv_origin: UvOrigin,
+    pub weighting: Weighting,
+    /// Used only when [`MeshInput::normals`] is `None`.
+    pub normal_mode: NormalMode,
+    /// Spread the work over the rayon thread pool. Results are identical either way.
+    pub parallel: bool,
+}
+
+/// A triangle list, indexed or not. All per-vertex slices must have the same length.
+#[derive(Clone, Copy, Debug)]
+pub struct MeshInput<'a> {
+    pub positions: &'a [[f32; 3]],
+    /// Per-vertex normals. When absent they are generated (see [`NormalMode`]).
+    pub normals: Option<&'a [[f32; 3]]>,
+    /// Per-vertex texture coordinates of the set the normal map uses. Required unless the method
+    /// is [`Method::Axis`].
+    pub uvs: Option<&'a [[f32; 2]]>,
+    /// Three indices per triangle. When absent, every three consecutive vertices form a triangle.
+    pub indices: Option<&'a [u32]>,
+}
+
+/// What [`generate`] returns.
+#[derive(Clone, Debug)]
+pub struct Tangents {
+    /// One tangent per corner (per index, or per vertex when the input is not indexed), in input
+    /// order: `xyz` unit and orthogonal to the normal, `w` = ±1.
+    pub corner_tangents: Vec<[f32; 4]>,
+    /// How to rebuild the vertex buffer so that every vertex has one tangent.
+    pub split: SplitPlan,
+    /// Generated normals, one per *output* vertex of [`Tangents::split`], when the input had none.
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub diagnostics: Diagnostics,
+}
+
+/// Input the core cannot work with at all. Anything softer (degenerate or non-finite data) is
+/// handled and reported in [`Diagnostics`] instead.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CoreError {
+    /// A per-vertex slice does not have as many entries as `positions`.
+    AttributeLength {
+        attribute: &'static str,
+        expected: usize,
+        found: usize,
+    },
+    /// The index (or vertex) count is not a multiple of three.
+    NotTriangles { count: usize },
+    /// An index points past the end of the vertex arrays.
+    IndexOutOfRange {
+        corner: usize,
+        index: u32,
+        vertex_count: usize,
+    },
+    /// The method needs texture coordinates and none were given.
+    MissingUvs { method: Method },
+    /// More vertices or corners than 32-bit indices can address.
+    TooLarge { count: usize },
+}
+
+impl fmt::Display for CoreError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CoreError::AttributeLength {
+                attribute,
+                expected,
+                found,
+            } => write!(
+                f,
+                "{attribute} has {found} entries but there are {expected} positions"
+            ),
+            CoreError::NotTriangles { count } => {
+                write!(f, "{count} indices do not make whole triangles")
+            }
+            CoreError::IndexOutOfRange {
+                corner,
+                index,
+                vertex_count,
+            } => write!(
+                f,
+                "index {index} at position {corner} is out of range for {vertex_count} vertices"
+            ),
+            CoreError::MissingUvs { method } => write!(
+                f,
+                "the {} method needs texture coordinates; use the axis method for meshes without UVs",
+                method.name()
+            ),
+            CoreError::TooLarge { count } => {
+                write!(f, "{count} elements exceed what 32-bit indices can address")
+            }
+        }
+    }
+}
+
+impl std::error::Error for CoreError {}
+
+/// Computes tangents for one triangle list.
+pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, CoreError> {
+    let vertex_count = input.positions.len();
+    check_lengths(input)?;
+    if options.method != Method::Axis && input.uvs.is_none() {
+        return Err(CoreError::MissingUvs {
+            method: options.method,
+        });
+    }
+
+    // Generated normals come with their own vertex split (flat normals give every triangle its
+    // own corners), so the tangent method below always sees an indexed mesh with normals.
+    let generated = match input.normals {
+        Some(_) => None,
+        None => Some(normals::generate(input, options.normal_mode)),
+    };
+    let owned_positions: Vec<[f32; 3]>;
+    let owned_uvs: Option<Vec<[f32; 2]>>;
+    let owned_indices: Vec<u32>;
+    let mesh = match (&generated, input.normals) {
+        (None, Some(normals)) => {
+            let indices: &[u32] = match input.indices {
+                Some(indices) => indices,
+                None => {
+                    owned_indices = (0..vertex_count as u32).collect();
+                    &owned_indices
+                }
+            };
+            math::Mesh {
+                positions: input.positions,
+                normals,
+                uvs: input.uvs,
+                indices,
+            }
+        }
+        (Some(generated), _) => {
+            let remap = &generated.split.source_vertex;
+            owned_positions = remap.iter().map(|&v| input.positions[v as usize]).collect();
+            owned_uvs = input
+                .uvs
+                .map(|uvs| remap.iter().map(|&v| uvs[v as usize]).collect());
+            math::Mesh {
+                positions: &owned_positions,
+                normals: &generated.normals,
+                uvs: owned_uvs.as_deref(),
+                indices: &generated.split.indices,
+            }
+        }
+        (None, None) => unreachable!("normals are generated whenever the input has none"),
+    };
+
+    let mut diagnostics = diagnostics::analyze(&mesh, options);
+    let mut corners = match options.method {
+        Method::MikkTSpace => mikktspace::generate(&mesh, options.parallel),
+        Method::Fast => fast::generate(&mesh, options.weighting, options.parallel),
+        Method::Axis => axis::generate(&mesh),
+    };
+    diagnostics.fallback_tangents = fallback::repair(&mesh, &mut corners, options.parallel);
+
+    // Axis tangents have no UV handedness to convert.
+    let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
+    let corner_tangents: Vec<[f32; 4]> = corners
+        .iter()
+        .map(|c| {
+            let w = if c.orientation_preserving != flip_w {
+                1.0
+            } else {
+                -1.0
+            };
+            [c.tangent[0], c.tangent[1], c.tangent[2], w]
+        })
+        .collect();
+    drop(corners);
+
+    let mut split = split::plan(
+        mesh.indices,
+        mesh.vertex_count(),
+        &corner_tangents,
+        mesh.normals,
+        &mut diagnostics,
+    );
+    let mut out_normals = None;
+    if let Some(generated) = &generated {
+        // Express the plan in terms of the caller's vertices, and hand back the normals.
+        out_normals = Some(
+            split
+                .source_vertex
+                .iter()
+                .map(|&v| generated.normals[v as usize])
+                .collect(),
+        );
+        for v in &mut split.source_vertex {
+            *v = generated.split.source_vertex[*v as usize];
+        }
+        diagnostics.generated_normals = Some(options.normal_mode);
+        diagnostics.vertices_in = vertex_count as u64;
+        diagnostics.vertices_added = split.source_vertex.len().saturating_sub(vertex_count) as u64;
+    }
+
+    Ok(Tangents {
+        corner_tangents,
+        split,
+        normals: out_normals,
+        diagnostics,
+    })
+}
+
+fn check_lengths(input: &MeshInput<'_>) -> Result<(), CoreError> {
+    let vertex_count = input.positions.len();
+    if vertex_count > u32::MAX as usize {
+        return Err(CoreError::TooLarge {
+            count: vertex_count,
+        });
+    }
+    if let Some(normals) = input.normals {
+        if normals.len() != vertex_count {
+            return Err(CoreError::AttributeLength {
+                attribute: "normals",
+                expected: vertex_count,
+                found: normals.len(),
+            });
+        }
+    }
+    if let Some(uvs) = input.uvs {
+        if uvs.len() != vertex_count {
+            return Err(CoreError::AttributeLength {
+                attribute: "uvs",
+                expected: vertex_count,
+                found: uvs.len(),
+            });
+        }
+    }
+    let corner_count = input.indices.map_or(vertex_count, <[u32]>::len);
+    if corner_count % 3 != 0 {
+        return Err(CoreError::NotTriangles {
+            count: corner_count,
+        });
+    }
+    if corner_count > u32::MAX as usize / 2 {
+        return Err(CoreError::TooLarge {
+            count: corner_count,
+        });
+    }
+    if let Some(indices) = input.indices {
+        if let Some(corner) = indices.iter().position(|&i| i as usize >= vertex_count) {
+            return Err(CoreError::IndexOutOfRange {
+                corner,
+                index: indices[corner],
+                vertex_count,
+            });
+        }
+    }
+    Ok(())
+}

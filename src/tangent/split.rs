@@ -1,0 +1,161 @@
+//! The split plan: where corners that share a vertex received different tangents, the vertex is
+//! duplicated; corners with identical tangents keep sharing it.
+//!
+//! The plan is expressed as indices into the caller's vertices, so that any other attribute (skin
+//! weights, colours, morph targets) can be duplicated the same way. Original vertices keep their
+//! index; duplicates are appended after them in order of first use. Triangle order and corner
+//! order are unchanged.
+
+use super::diagnostics::{Diagnostics, Tally};
+use super::math::{any_orthogonal, is_finite3, length, scale};
+use super::weld::NONE;
+
+/// How to rebuild the vertex buffer so that each vertex carries exactly one tangent.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SplitPlan {
+    /// For every output vertex, the input vertex it copies. The first `vertex_count` entries are
+    /// `0, 1, 2, …` (every input vertex keeps its place, used or not).
+    pub source_vertex: Vec<u32>,
+    /// The new index buffer: one entry per input corner, same order.
+    pub indices: Vec<u32>,
+    /// The tangent of every output vertex.
+    pub vertex_tangents: Vec<[f32; 4]>,
+}
+
+impl SplitPlan {
+    /// True when no vertex was added (the plan is the identity).
+    pub fn is_identity(&self, vertex_count: usize) -> bool {
+        self.source_vertex.len() == vertex_count
+    }
+}
+
+#[inline]
+fn key(t: &[f32; 4]) -> [u32; 4] {
+    t.map(|x| if x == 0.0 { 0 } else { x.to_bits() })
+}
+
+/// Builds the plan and fills the split and handedness counts of `diagnostics`.
+pub(crate) fn plan(
+    indices: &[u32],
+    vertex_count: usize,
+    corner_tangents: &[[f32; 4]],
+    normals: &[[f32; 3]],
+    diagnostics: &mut Diagnostics,
+) -> SplitPlan {
+    let mut source_vertex: Vec<u32> = (0..vertex_count as u32).collect();
+    let mut vertex_tangents: Vec<[f32; 4]> = vec![[0.0; 4]; vertex_count];
+    let mut keys: Vec<[u32; 4]> = vec![[NONE; 4]; vertex_count];
+    // Chains of duplicates: next_copy[v] is the next output vertex copying the same input vertex.
+    let mut next_copy: Vec<u32> = vec![NONE; vertex_count];
+    // Bit 0: a corner with w = +1 was seen; bit 1: w = -1.
+    let mut signs = vec![0u8; vertex_count];
+    let mut out_indices = Vec::with_capacity(indices.len());
+
+    for (&v, tangent) in indices.iter().zip(corner_tangents) {
+        let v = v as usize;
+        let k = key(tangent);
+        let first_use = signs[v] == 0;
+        signs[v] |= if tangent[3] > 0.0 { 1 } else { 2 };
+        if first_use {
+            keys[v] = k;
+            vertex_tangents[v] = *tangent;
+            out_indices.push(v as u32);
+            continue;
+        }
+        let mut at = v;
+        loop {
+            if keys[at] == k {
+                out_indices.push(at as u32);
+                break;
+            }
+            if next_copy[at] == NONE {
+                let copy = source_vertex.len();
+                source_vertex.push(v as u32);
+                vertex_tangents.push(*tangent);
+                keys.push(k);
+                next_copy.push(NONE);
+                next_copy[at] = copy as u32;
+                out_indices.push(copy as u32);
+                break;
+            }
+            at = next_copy[at] as usize;
+        }
+    }
+
+    // Vertices no triangle uses still need a valid tangent in the output.
+    for v in 0..vertex_count {
+        if signs[v] == 0 {
+            let n = normals[v];
+            let len = length(n);
+            let n = if is_finite3(n) && len > 0.0 {
+                scale(n, 1.0 / len)
+            } else {
+                [0.0, 0.0, 1.0]
+            };
+            let t = any_orthogonal(n);
+            vertex_tangents[v] = [t[0], t[1], t[2], 1.0];
+        }
+    }
+
+    let mut flips = Tally::default();
+    for (v, &s) in signs.iter().enumerate() {
+        if s == 3 {
+            flips.add(v as u32);
+        }
+    }
+    let mut mixed = Tally::default();
+    for (t, corners) in corner_tangents.chunks_exact(3).enumerate() {
+        if corners[0][3] != corners[1][3] || corners[0][3] != corners[2][3] {
+            mixed.add(t as u32);
+        }
+    }
+    diagnostics.handedness_flip_vertices = flips;
+    diagnostics.mixed_handedness_triangles = mixed;
+    diagnostics.vertices_in = vertex_count as u64;
+    diagnostics.vertices_out = source_vertex.len() as u64;
+    diagnostics.vertices_added = (source_vertex.len() - vertex_count) as u64;
+
+    SplitPlan {
+        source_vertex,
+        indices: out_indices,
+        vertex_tangents,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splits_only_where_tangents_differ() {
+        let indices = [0, 1, 2, 2, 1, 3];
+        let a = [1.0, 0.0, 0.0, 1.0];
+        let b = [0.0, 1.0, 0.0, -1.0];
+        let tangents = [a, a, a, a, b, b];
+        let normals = [[0.0, 0.0, 1.0]; 4];
+        let mut d = Diagnostics::default();
+        let plan = plan(&indices, 4, &tangents, &normals, &mut d);
+        assert_eq!(plan.source_vertex, vec![0, 1, 2, 3, 1]);
+        assert_eq!(plan.indices, vec![0, 1, 2, 2, 4, 3]);
+        assert_eq!(plan.vertex_tangents[4], b);
+        assert_eq!(plan.vertex_tangents[3], b);
+        assert_eq!(d.vertices_added, 1);
+        assert_eq!(d.handedness_flip_vertices.first, vec![1]);
+        assert_eq!(d.mixed_handedness_triangles.first, vec![1]);
+    }
+
+    #[test]
+    fn unused_vertices_get_a_valid_tangent() {
+        let mut d = Diagnostics::default();
+        let plan = plan(
+            &[0, 0, 0],
+            2,
+            &[[1.0, 0.0, 0.0, 1.0]; 3],
+            &[[0.0, 0.0, 1.0]; 2],
+            &mut d,
+        );
+        assert_eq!(plan.source_vertex, vec![0, 1]);
+        let t = plan.vertex_tangents[1];
+        assert!((t[0] * t[0] + t[1] * t[1] + t[2] * t[2] - 1.0).abs() < 1e-6 && t[2] == 0.0);
+    }
+}
