@@ -3,14 +3,10 @@
 //! the default: a normal map cannot have been baked against it.
 
 use super::fallback::effective_normal;
-use super::math::{CornerTangent, Mesh, any_orthogonal};
+use super::math::{Mesh, any_orthogonal, encode};
 
-pub(crate) fn generate(mesh: &Mesh<'_>) -> Vec<CornerTangent> {
+pub(crate) fn generate(mesh: &Mesh<'_>) -> Vec<[f32; 4]> {
     (0..mesh.indices.len())
-        .map(|corner| CornerTangent {
-            tangent: any_orthogonal(effective_normal(mesh, corner)),
-            orientation_preserving: true,
-            assigned: true,
-        })
+        .map(|corner| encode(any_orthogonal(effective_normal(mesh, corner)), true))
         .collect()
 }

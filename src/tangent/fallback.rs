@@ -15,9 +15,7 @@
 //! (the reference would leave it at "not preserving").
 
 use super::diagnostics::FallbackCounts;
-use super::math::{
-    CornerTangent, Mesh, any_orthogonal, cross, dot, is_finite3, length, reject, scale, sub,
-};
+use super::math::{Mesh, any_orthogonal, cross, dot, is_finite3, length, reject, scale, sub};
 use rayon::prelude::*;
 
 /// Tolerances a tangent must meet to be passed through untouched. They are tighter than the
@@ -61,11 +59,11 @@ enum Problem {
     NotOrthogonal,
 }
 
-fn check(corner: &CornerTangent, normal: [f32; 3]) -> Option<Problem> {
-    if !corner.assigned {
+fn check(tangent: &[f32; 4], normal: [f32; 3]) -> Option<Problem> {
+    if tangent[3] == 0.0 {
         return Some(Problem::Unassigned);
     }
-    let t = corner.tangent;
+    let t = [tangent[0], tangent[1], tangent[2]];
     if !is_finite3(t) {
         return Some(Problem::NonFinite);
     }
@@ -77,6 +75,16 @@ fn check(corner: &CornerTangent, normal: [f32; 3]) -> Option<Problem> {
         return Some(Problem::NotOrthogonal);
     }
     None
+}
+
+/// The common case, decided without normalizing anything: a unit input normal (within 1e-6,
+/// so the orthogonality test against it stands for the test against its normalization) and a
+/// tangent that passes.
+#[inline]
+fn obviously_valid(mesh: &Mesh<'_>, corner: usize, tangent: &[f32; 4]) -> bool {
+    let n = mesh.normals[mesh.indices[corner] as usize];
+    let n2 = dot(n, n);
+    (n2 - 1.0).abs() < 1e-6 && check(tangent, n).is_none()
 }
 
 /// Projects `v` into the plane of the unit `normal` and normalizes it, if enough is left.
@@ -111,33 +119,38 @@ fn triangle_tangent(mesh: &Mesh<'_>, triangle: usize) -> ([f32; 3], f32) {
     (scale(s, sign), det)
 }
 
-fn repair_corner(mesh: &Mesh<'_>, corner: usize, tangent: &mut CornerTangent) -> Option<Problem> {
+fn repair_corner(mesh: &Mesh<'_>, corner: usize, tangent: &mut [f32; 4]) -> Option<Problem> {
+    if obviously_valid(mesh, corner, tangent) {
+        return None;
+    }
     let normal = effective_normal(mesh, corner);
     let problem = check(tangent, normal)?;
     let (own, det) = triangle_tangent(mesh, corner / 3);
     let projected = match problem {
-        Problem::NotOrthogonal => in_plane(tangent.tangent, normal),
+        Problem::NotOrthogonal => in_plane([tangent[0], tangent[1], tangent[2]], normal),
         _ => None,
     };
     let replacement = projected
         .or_else(|| in_plane(own, normal))
         .unwrap_or_else(|| any_orthogonal(normal));
-    if problem == Problem::Unassigned {
-        tangent.orientation_preserving = det > 0.0;
-    }
-    tangent.tangent = replacement;
-    tangent.assigned = true;
+    let w = match problem {
+        Problem::Unassigned => {
+            if det > 0.0 {
+                1.0
+            } else {
+                -1.0
+            }
+        }
+        _ => tangent[3],
+    };
+    *tangent = [replacement[0], replacement[1], replacement[2], w];
     Some(problem)
 }
 
 /// Replaces every invalid tangent and counts what was replaced.
-pub(crate) fn repair(
-    mesh: &Mesh<'_>,
-    corners: &mut [CornerTangent],
-    parallel: bool,
-) -> FallbackCounts {
+pub(crate) fn repair(mesh: &Mesh<'_>, corners: &mut [[f32; 4]], parallel: bool) -> FallbackCounts {
     const CHUNK: usize = 16384;
-    let run = |(chunk_index, chunk): (usize, &mut [CornerTangent])| {
+    let run = |(chunk_index, chunk): (usize, &mut [[f32; 4]])| {
         let mut counts = FallbackCounts::default();
         for (k, tangent) in chunk.iter_mut().enumerate() {
             let corner = chunk_index * CHUNK + k;

@@ -5,7 +5,7 @@
 
 use super::Weighting;
 use super::math::{
-    CornerTangent, Mesh, add, cross, dot, is_finite3, length, normalize_or_zero, reject,
+    Mesh, UNASSIGNED, add, cross, dot, encode, is_finite3, length, normalize_or_zero, reject,
     same_position, scale, sub,
 };
 use super::weld::{CornerTable, weld_mesh};
@@ -72,11 +72,7 @@ fn corner_angle(mesh: &Mesh<'_>, corner: usize) -> f32 {
     if angle.is_finite() { angle } else { 0.0 }
 }
 
-pub(crate) fn generate(
-    mesh: &Mesh<'_>,
-    weighting: Weighting,
-    parallel: bool,
-) -> Vec<CornerTangent> {
+pub(crate) fn generate(mesh: &Mesh<'_>, weighting: Weighting, parallel: bool) -> Vec<[f32; 4]> {
     let triangle_count = mesh.triangle_count();
     let faces: Vec<Face> = if parallel {
         (0..triangle_count)
@@ -103,7 +99,7 @@ pub(crate) fn generate(
     };
 
     // Per class: accumulate each handedness apart, then give every corner the sum of its side.
-    let evaluate = |class: usize, out: &mut [CornerTangent]| {
+    let evaluate = |class: usize, out: &mut [[f32; 4]]| {
         let corners = table.of(class);
         let normal = mesh.normals[mesh.indices[corners[0] as usize] as usize];
         // [preserving, mirrored] sums of s and t.
@@ -133,15 +129,11 @@ pub(crate) fn generate(
             } else {
                 side == 0
             };
-            out[k] = CornerTangent {
-                tangent,
-                orientation_preserving,
-                assigned: dot(tangent, tangent) > 0.0,
-            };
+            out[k] = encode(tangent, orientation_preserving);
         }
     };
 
-    let mut results = vec![CornerTangent::UNASSIGNED; table.corners.len()];
+    let mut results = vec![UNASSIGNED; table.corners.len()];
     let chunks = table.chunks(if parallel {
         rayon::current_num_threads() * 16
     } else {
@@ -155,7 +147,7 @@ pub(crate) fn generate(
         pieces.push((range, head));
         rest = tail;
     }
-    let run = |(range, out): (std::ops::Range<usize>, &mut [CornerTangent])| {
+    let run = |(range, out): (std::ops::Range<usize>, &mut [[f32; 4]])| {
         let base = table.offsets[range.start] as usize;
         for class in range {
             let span =

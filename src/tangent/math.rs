@@ -35,22 +35,16 @@ impl Mesh<'_> {
     }
 }
 
-/// The tangent a method computed for one corner, before `w` is put in the output convention.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct CornerTangent {
-    pub tangent: [f32; 3],
-    pub orientation_preserving: bool,
-    /// False when the method produced nothing for this corner (the reference leaves such corners
-    /// at its (1,0,0) default).
-    pub assigned: bool,
-}
+/// A method's result for one corner is written straight into the output buffer as `[x, y, z, w]`
+/// with `w = +1` where the UV frame preserves orientation and `-1` where it is mirrored, before
+/// the UV-origin convention is applied. `w = 0` marks a corner the method left without a tangent
+/// (the reference leaves such corners at its (1,0,0) default).
+pub(crate) const UNASSIGNED: [f32; 4] = [1.0, 0.0, 0.0, 0.0];
 
-impl CornerTangent {
-    pub const UNASSIGNED: CornerTangent = CornerTangent {
-        tangent: [1.0, 0.0, 0.0],
-        orientation_preserving: false,
-        assigned: false,
-    };
+#[inline]
+pub(crate) fn encode(tangent: [f32; 3], orientation_preserving: bool) -> [f32; 4] {
+    let w = if orientation_preserving { 1.0 } else { -1.0 };
+    [tangent[0], tangent[1], tangent[2], w]
 }
 
 #[inline]

@@ -33,8 +33,8 @@
 //!   as `bevy_mikktspace`'s `corrected-edge-sorting` feature does.
 
 use super::math::{
-    CornerTangent, Mesh, add, dot, is_finite3, normalize_or_zero, not_zero, reject, same_position,
-    scale, sub,
+    Mesh, UNASSIGNED, add, dot, encode, is_finite3, normalize_or_zero, not_zero, reject,
+    same_position, scale, sub,
 };
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
@@ -53,7 +53,7 @@ struct Frame {
     t: [f32; 3],
 }
 
-pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<CornerTangent> {
+pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<[f32; 4]> {
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh);
 
@@ -105,7 +105,7 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<CornerTangent> {
     };
 
     // Results are laid out like `table.corners`, so that each vertex owns a contiguous slice.
-    let mut results = vec![CornerTangent::UNASSIGNED; table.corners.len()];
+    let mut results = vec![UNASSIGNED; table.corners.len()];
     let chunks = table.chunks(if parallel {
         rayon::current_num_threads() * 16
     } else {
@@ -120,7 +120,7 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<CornerTangent> {
             pieces.push((range.clone(), head));
             rest = tail;
         }
-        let run = |(range, out): (std::ops::Range<usize>, &mut [CornerTangent])| {
+        let run = |(range, out): (std::ops::Range<usize>, &mut [[f32; 4]])| {
             let mut scratch = Scratch::default();
             let mut touched = Vec::new();
             let base = table.offsets[range.start] as usize;
@@ -154,7 +154,7 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<CornerTangent> {
 
     // Gather per corner. Degenerate corners borrow from the first good corner of their vertex.
     let slot_of_corner = table.slot_of_corners(corner_class.len());
-    let gather = |(c, out): (usize, &mut CornerTangent)| {
+    let gather = |(c, out): (usize, &mut [f32; 4])| {
         let slot = slot_of_corner[c];
         *out = if slot != NONE {
             results[slot as usize]
@@ -164,11 +164,11 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<CornerTangent> {
             if first < table.offsets[class as usize + 1] {
                 results[first as usize]
             } else {
-                CornerTangent::UNASSIGNED
+                UNASSIGNED
             }
         };
     };
-    let mut out = vec![CornerTangent::UNASSIGNED; corner_class.len()];
+    let mut out = vec![UNASSIGNED; corner_class.len()];
     if parallel {
         out.par_iter_mut()
             .enumerate()
@@ -325,12 +325,7 @@ impl Context<'_> {
 
     /// Groups the vertices that touch "group with anything" triangles, in the reference's order:
     /// seeds by ascending corner, each group walked depth first, incoming edge before outgoing.
-    fn group_touched_vertices(
-        &self,
-        touched: &[u32],
-        flags: &mut [u8],
-        results: &mut [CornerTangent],
-    ) {
+    fn group_touched_vertices(&self, touched: &[u32], flags: &mut [u8], results: &mut [[f32; 4]]) {
         let mut scratch = Scratch::default();
         // Links and labels of every touched vertex, laid out one vertex after another.
         let mut link_offsets = Vec::with_capacity(touched.len() + 1);
@@ -401,7 +396,7 @@ impl Context<'_> {
         class: usize,
         flags: &[u8],
         labels: &[u32],
-        out: &mut [CornerTangent],
+        out: &mut [[f32; 4]],
         eval: &mut EvalScratch,
     ) {
         let corners = self.table.of(class);
@@ -465,7 +460,7 @@ impl Context<'_> {
         &self,
         corners: &[u32],
         orientation_preserving: bool,
-        out: &mut [CornerTangent],
+        out: &mut [[f32; 4]],
         eval: &mut EvalScratch,
     ) {
         let members = &eval.members;
@@ -484,11 +479,7 @@ impl Context<'_> {
         if single || group.len() > MAX_EXACT_SUBGROUP {
             let tangent = sum_tangents(group.iter().map(|&j| &members[j as usize]));
             for &j in group {
-                out[j as usize] = CornerTangent {
-                    tangent,
-                    orientation_preserving,
-                    assigned: true,
-                };
+                out[j as usize] = encode(tangent, orientation_preserving);
             }
             return;
         }
@@ -501,11 +492,7 @@ impl Context<'_> {
                 ma.any || mb.any || same_face || (dot(ma.s, mb.s) > -1.0 && dot(ma.t, mb.t) > -1.0)
             });
             let tangent = sum_tangents(subgroup.map(|&j| &members[j as usize]));
-            out[a as usize] = CornerTangent {
-                tangent,
-                orientation_preserving,
-                assigned: true,
-            };
+            out[a as usize] = encode(tangent, orientation_preserving);
         }
     }
 

@@ -260,19 +260,12 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     diagnostics.fallback_tangents = fallback::repair(&mesh, &mut corners, options.parallel);
 
     // Axis tangents have no UV handedness to convert.
-    let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
-    let corner_tangents: Vec<[f32; 4]> = corners
-        .iter()
-        .map(|c| {
-            let w = if c.orientation_preserving != flip_w {
-                1.0
-            } else {
-                -1.0
-            };
-            [c.tangent[0], c.tangent[1], c.tangent[2], w]
-        })
-        .collect();
-    drop(corners);
+    let mut corner_tangents = corners;
+    if options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft {
+        for t in &mut corner_tangents {
+            t[3] = -t[3];
+        }
+    }
 
     let mut split = split::plan(
         mesh.indices,
