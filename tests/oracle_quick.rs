@@ -54,7 +54,11 @@ fn compare(
 
 #[test]
 fn generated_shapes_match_reference() {
-    for shape in shapes::shapes_of_size(20_000) {
+    // 200k triangles exercise the multi-block (parallel) corner table.
+    for shape in shapes::shapes_of_size(20_000)
+        .into_iter()
+        .chain(shapes::shapes_of_size(200_000))
+    {
         compare(
             &shape.name,
             &shape.positions,

@@ -89,7 +89,7 @@ pub(crate) fn generate(mesh: &Mesh<'_>, weighting: Weighting, parallel: bool) ->
         .iter()
         .map(|&v| weld.class_of_vertex[v as usize])
         .collect();
-    let table = CornerTable::build(&corner_class, weld.class_count);
+    let table = CornerTable::build_filtered(&corner_class, weld.class_count, |_| true, parallel);
 
     let weight = |corner: usize| -> f32 {
         match weighting {
@@ -163,8 +163,8 @@ pub(crate) fn generate(mesh: &Mesh<'_>, weighting: Weighting, parallel: bool) ->
         pieces.into_iter().for_each(run);
     }
 
-    let slot_of_corner = table.slot_of_corners(corner_class.len());
-    slot_of_corner
+    table
+        .slot_of_corner
         .iter()
         .map(|&slot| results[slot as usize])
         .collect()

@@ -78,24 +78,22 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<[f32; 4]> {
     }
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
-    let corner_class: Vec<u32> = mesh
-        .indices
-        .iter()
-        .map(|&v| weld.class_of_vertex[v as usize])
-        .collect();
-    let good_class: Vec<u32> = corner_class
-        .iter()
-        .enumerate()
-        .map(|(c, &class)| {
-            if flags[c / 3] & DEGENERATE != 0 {
-                NONE
-            } else {
-                class
-            }
-        })
-        .collect();
-    let table = CornerTable::build(&good_class, weld.class_count);
-    drop(good_class);
+    let class_of = |&v: &u32| weld.class_of_vertex[v as usize];
+    let corner_class: Vec<u32> = if parallel {
+        mesh.indices
+            .par_iter()
+            .with_min_len(8192)
+            .map(class_of)
+            .collect()
+    } else {
+        mesh.indices.iter().map(class_of).collect()
+    };
+    let table = CornerTable::build_filtered(
+        &corner_class,
+        weld.class_count,
+        |c| flags[c / 3] & DEGENERATE == 0,
+        parallel,
+    );
 
     let context = Context {
         mesh,
@@ -153,7 +151,7 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<[f32; 4]> {
     }
 
     // Gather per corner. Degenerate corners borrow from the first good corner of their vertex.
-    let slot_of_corner = table.slot_of_corners(corner_class.len());
+    let slot_of_corner = &table.slot_of_corner;
     let gather = |(c, out): (usize, &mut [f32; 4])| {
         let slot = slot_of_corner[c];
         *out = if slot != NONE {

@@ -71,7 +71,8 @@ pub(crate) fn generate(input: &MeshInput<'_>, mode: NormalMode) -> GeneratedNorm
                 .iter()
                 .map(|&v| weld.class_of_vertex[v as usize])
                 .collect();
-            let table = CornerTable::build(&corner_class, weld.class_count);
+            let table =
+                CornerTable::build_filtered(&corner_class, weld.class_count, |_| true, false);
             let mut normals = vec![[0.0f32; 3]; indices.len()];
             for class in 0..weld.class_count {
                 let corners = table.of(class);

@@ -6,6 +6,8 @@
 //! of hashing every corner as the reference does.
 
 use super::math::Mesh;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Sentinel for "no entry" in index arrays.
 pub(crate) const NONE: u32 = u32::MAX;
@@ -142,31 +144,100 @@ pub(crate) struct CornerTable {
     /// `offsets[c]..offsets[c + 1]` indexes `corners` for class `c`.
     pub offsets: Vec<u32>,
     pub corners: Vec<u32>,
+    /// For every corner, its position in `corners` (`NONE` for corners left out).
+    pub slot_of_corner: Vec<u32>,
 }
 
 impl CornerTable {
     /// Builds the table from the class of every corner; corners whose class is [`NONE`] are
     /// left out.
+    #[cfg(test)]
     pub fn build(corner_class: &[u32], class_count: usize) -> CornerTable {
+        Self::build_filtered(corner_class, class_count, |_| true, false)
+    }
+
+    /// Builds the table over the corners for which `keep(corner)` holds (and whose class is not
+    /// [`NONE`]). In parallel, a counting sort per block of corners: each block counts its
+    /// corners per class, the counts are laid out block after block within each class, and each
+    /// block fills its own places, so the order within a class stays ascending.
+    pub fn build_filtered(
+        corner_class: &[u32],
+        class_count: usize,
+        keep: impl Fn(usize) -> bool + Sync,
+        parallel: bool,
+    ) -> CornerTable {
+        let corner_count = corner_class.len();
+        let blocks = if parallel && corner_count >= 1 << 16 {
+            rayon::current_num_threads().clamp(1, 8)
+        } else {
+            1
+        };
+        let block_len = corner_count.div_ceil(blocks).max(1);
+        let class_of = |c: usize| {
+            let class = corner_class[c];
+            if class != NONE && keep(c) {
+                class
+            } else {
+                NONE
+            }
+        };
+        // counts[block][class], then turned into each block's first place in every class.
+        let count_block = |b: usize| {
+            let mut counts = vec![0u32; class_count];
+            for c in b * block_len..((b + 1) * block_len).min(corner_count) {
+                let class = class_of(c);
+                if class != NONE {
+                    counts[class as usize] += 1;
+                }
+            }
+            counts
+        };
+        let mut counts: Vec<Vec<u32>> = if blocks > 1 {
+            (0..blocks).into_par_iter().map(count_block).collect()
+        } else {
+            vec![count_block(0)]
+        };
         let mut offsets = vec![0u32; class_count + 1];
-        for &c in corner_class {
-            if c != NONE {
-                offsets[c as usize + 1] += 1;
+        let mut running = 0u32;
+        for class in 0..class_count {
+            offsets[class] = running;
+            for block in counts.iter_mut() {
+                let n = block[class];
+                block[class] = running;
+                running += n;
             }
         }
-        for i in 0..class_count {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut corners = vec![0u32; offsets[class_count] as usize];
-        for (corner, &c) in corner_class.iter().enumerate() {
-            if c != NONE {
-                let at = &mut fill[c as usize];
-                corners[*at as usize] = corner as u32;
-                *at += 1;
+        offsets[class_count] = running;
+
+        let corners: Vec<AtomicU32> = (0..running).map(|_| AtomicU32::new(0)).collect();
+        let slot_of_corner: Vec<AtomicU32> =
+            (0..corner_count).map(|_| AtomicU32::new(NONE)).collect();
+        let fill_block = |(b, mut next): (usize, Vec<u32>)| {
+            for c in b * block_len..((b + 1) * block_len).min(corner_count) {
+                let class = class_of(c);
+                if class != NONE {
+                    let at = next[class as usize];
+                    next[class as usize] += 1;
+                    // Every place is written by exactly one block, and rayon's join makes the
+                    // writes visible before the table is read, so relaxed stores suffice.
+                    corners[at as usize].store(c as u32, Ordering::Relaxed);
+                    slot_of_corner[c].store(at, Ordering::Relaxed);
+                }
             }
+        };
+        if blocks > 1 {
+            counts.into_par_iter().enumerate().for_each(fill_block);
+        } else {
+            counts.into_iter().enumerate().for_each(fill_block);
         }
-        CornerTable { offsets, corners }
+        CornerTable {
+            offsets,
+            corners: corners.into_iter().map(AtomicU32::into_inner).collect(),
+            slot_of_corner: slot_of_corner
+                .into_iter()
+                .map(AtomicU32::into_inner)
+                .collect(),
+        }
     }
 
     /// Splits the classes into about `pieces` ranges holding similar numbers of corners.
@@ -186,15 +257,6 @@ impl CornerTable {
             start = end;
         }
         ranges
-    }
-
-    /// For every corner, its position in `corners` (`NONE` for corners left out).
-    pub fn slot_of_corners(&self, corner_count: usize) -> Vec<u32> {
-        let mut slots = vec![NONE; corner_count];
-        for (slot, &corner) in self.corners.iter().enumerate() {
-            slots[corner as usize] = slot as u32;
-        }
-        slots
     }
 
     #[inline]
