@@ -87,19 +87,14 @@ pub enum Weighting {
 }
 
 /// How normals are made when the mesh has none.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum NormalMode {
     /// One normal per triangle, as the glTF specification requires for meshes without normals.
+    #[default]
     Flat,
     /// Angle-weighted vertex normals, averaged across edges whose faces meet at less than
     /// `crease_degrees`; sharper edges stay hard.
     SmoothByAngle { crease_degrees: f32 },
-}
-
-impl Default for NormalMode {
-    fn default() -> Self {
-        NormalMode::Flat
-    }
 }
 
 /// Options for [`generate`].

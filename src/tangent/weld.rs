@@ -213,7 +213,10 @@ impl CornerTable {
         let slot_of_corner: Vec<AtomicU32> =
             (0..corner_count).map(|_| AtomicU32::new(NONE)).collect();
         let fill_block = |(b, mut next): (usize, Vec<u32>)| {
-            for c in b * block_len..((b + 1) * block_len).min(corner_count) {
+            let first = b * block_len;
+            let end = ((b + 1) * block_len).min(corner_count);
+            for (c, slot) in slot_of_corner[first..end].iter().enumerate() {
+                let c = first + c;
                 let class = class_of(c);
                 if class != NONE {
                     let at = next[class as usize];
@@ -221,7 +224,7 @@ impl CornerTable {
                     // Every place is written by exactly one block, and rayon's join makes the
                     // writes visible before the table is read, so relaxed stores suffice.
                     corners[at as usize].store(c as u32, Ordering::Relaxed);
-                    slot_of_corner[c].store(at, Ordering::Relaxed);
+                    slot.store(at, Ordering::Relaxed);
                 }
             }
         };
