@@ -13,8 +13,10 @@ use super::weld::NONE;
 /// How to rebuild the vertex buffer so that each vertex carries exactly one tangent.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SplitPlan {
-    /// For every output vertex, the input vertex it copies. The first `vertex_count` entries are
-    /// `0, 1, 2, …` (every input vertex keeps its place, used or not).
+    /// For every output vertex, the input vertex it copies. When the input had normals, the
+    /// first `vertex_count` entries are `0, 1, 2, …` (every input vertex keeps its place, used or
+    /// not). When normals were generated, vertices are first split by normal, and the list maps
+    /// each output vertex (in order of first use) back to its input vertex.
     pub source_vertex: Vec<u32>,
     /// The new index buffer: one entry per input corner, same order.
     pub indices: Vec<u32>,
