@@ -29,21 +29,22 @@ const COLORS: [RGBColor; 8] = [
 /// Smallest error drawn: a log axis cannot show zero.
 const ERROR_FLOOR: f64 = 1e-6;
 
-/// Powers of ten enclosing all values (log axes read best on decade bounds).
+/// Powers of ten enclosing all values (log axes read best on decade bounds), with some room so
+/// that no point sits on the frame.
 fn decade_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
         (lo.min(v), hi.max(v))
     });
-    if !lo.is_finite() || !hi.is_finite() {
+    if !lo.is_finite() || !hi.is_finite() || lo <= 0.0 {
         return 0.1..10.0;
     }
-    let lo = 10f64.powf(lo.log10().floor());
-    let hi = 10f64.powf(hi.log10().ceil());
+    let lo = 10f64.powf((lo.log10() - 0.2).floor());
+    let hi = 10f64.powf((hi.log10() + 0.2).ceil());
     if hi > lo { lo..hi } else { lo..lo * 10.0 }
 }
 
-/// Draws the chart as SVG. `labelled_method` gets its points annotated with the mesh size; the
-/// others would only clutter the picture, and every line runs from small to large meshes.
+/// Draws the chart as SVG. `labelled_method` gets its sphere points annotated with the mesh
+/// size; more labels would only clutter the picture, and every line runs from small to large.
 pub fn draw(path: &Path, points: &[Point], labelled_method: &str) -> Result<(), Box<dyn Error>> {
     let mut methods: Vec<&'static str> = Vec::new();
     for p in points {
@@ -75,6 +76,7 @@ pub fn draw(path: &Path, points: &[Point], labelled_method: &str) -> Result<(), 
 
     for (i, &method) in methods.iter().enumerate() {
         let color = COLORS[i % COLORS.len()];
+        let mut in_legend = false;
         for family in [Family::Sphere, Family::Torus] {
             let mut line: Vec<&Point> = points
                 .iter()
@@ -89,7 +91,9 @@ pub fn draw(path: &Path, points: &[Point], labelled_method: &str) -> Result<(), 
                 line.iter().map(|p| xy(p)),
                 color.stroke_width(2),
             ))?;
-            if family == Family::Sphere {
+            // One legend entry per method, whichever shape comes first.
+            if !in_legend {
+                in_legend = true;
                 series.label(method).legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
                 });
@@ -111,7 +115,8 @@ pub fn draw(path: &Path, points: &[Point], labelled_method: &str) -> Result<(), 
                         )))?;
                     }
                 }
-                if method == labelled_method {
+                // Sphere and torus of one size land close together: label one of them.
+                if method == labelled_method && family == Family::Sphere {
                     chart.draw_series(std::iter::once(
                         EmptyElement::at(xy(p))
                             + Text::new(p.size_label.clone(), (6, -16), ("sans-serif", 13)),

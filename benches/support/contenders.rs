@@ -135,7 +135,9 @@ impl Contender {
 
 /// What a contender returns. Kept whole so that dropping it stays outside the timed region.
 pub enum Output {
-    Tspace(Tangents),
+    /// Boxed because `Tangents` carries its diagnostics inline; the box is one small allocation
+    /// next to the multi-megabyte vectors.
+    Tspace(Box<Tangents>),
     Corners(Vec<[f32; 4]>),
 }
 
@@ -153,7 +155,7 @@ impl Output {
 pub fn run(contender: Contender, mesh: &BenchMesh) -> Result<Output, String> {
     if let Some(options) = contender.tspace_options() {
         return tangent::generate(&mesh.input(), &options)
-            .map(Output::Tspace)
+            .map(|t| Output::Tspace(Box::new(t)))
             .map_err(|e| e.to_string());
     }
     match contender {

@@ -5,3 +5,4 @@ pub mod alloc;
 pub mod chart;
 pub mod contenders;
 pub mod corpus;
+pub mod cpu;
