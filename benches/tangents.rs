@@ -47,6 +47,9 @@ const TARGET_EXTRA_HEAP_PER_TRIANGLE: f64 = 150.0;
 /// The parallel speedup target applies to the large meshes only: on small ones the fixed cost
 /// of waking the pool is a visible share.
 const SPEEDUP_TARGET_MIN_TRIANGLES: usize = 1_000_000;
+/// Smallest mesh for which the idle-core speedup estimate is shown (see
+/// `MeshReport::idle_two_core_speedup`).
+const IDLE_ESTIMATE_MIN_TRIANGLES: usize = 100_000;
 
 struct Config {
     sizes: Vec<usize>,
@@ -206,25 +209,44 @@ impl MeshReport {
     }
 
     /// The speedup `parallel` would have over `single` on two idle cores, estimated from the
-    /// scheduler's CPU accounting (see `support::cpu`).
+    /// scheduler's CPU accounting (see `support::cpu`). Left out on small meshes, where rayon's
+    /// idle workers spinning between jobs is a large share of the pool's CPU time and the
+    /// estimate means little.
     fn idle_two_core_speedup(&self, parallel: Contender, single: Contender) -> Option<f64> {
+        if self.triangles < IDLE_ESTIMATE_MIN_TRIANGLES {
+            return None;
+        }
         let single = self.get(single)?.idle_estimate(1)?;
         let parallel = self.get(parallel)?.idle_estimate(2)?;
         Some(single / parallel)
     }
 
-    /// Share of the timed wall-clock time this process's threads spent waiting for a CPU that
-    /// another process held: how much the machine's other load disturbed this mesh.
+    /// Share of the single-threaded contenders' timed wall-clock time during which the bench
+    /// thread was ready to run but another process held the CPU: how much the machine's other
+    /// load disturbed this mesh.
     fn wait_share(&self) -> Option<f64> {
-        let wall: f64 = self.measured.iter().flat_map(|m| &m.samples).sum();
-        let waited: f64 = self
-            .measured
-            .iter()
+        let single = || self.measured.iter().filter(|m| !m.contender.is_parallel());
+        let wall: f64 = single().flat_map(|m| &m.samples).sum();
+        let waited: f64 = single()
             .flat_map(|m| &m.usage)
-            .map(|u| u.waited)
+            .map(|u| u.caller_waited)
             .sum();
-        let any = self.measured.iter().any(|m| !m.usage.is_empty());
+        let any = single().any(|m| !m.usage.is_empty());
         (any && wall > 0.0).then(|| waited / wall)
+    }
+
+    /// Share of the pool threads' time, in the parallel contenders' runs, spent ready to run but
+    /// waiting for a CPU: when other processes hold the second core, this is where it shows.
+    fn pool_wait_share(&self) -> Option<f64> {
+        let usage = || {
+            self.measured
+                .iter()
+                .filter(|m| m.contender.is_parallel())
+                .flat_map(|m| &m.usage)
+        };
+        let waited: f64 = usage().map(|u| u.others_waited).sum();
+        let busy: f64 = usage().map(|u| u.others_cpu).sum();
+        (waited + busy > 0.0).then(|| waited / (waited + busy))
     }
 
     fn extra_heap_per_triangle(&self, contender: Contender) -> Option<f64> {
@@ -428,11 +450,13 @@ fn ratio_table(reports: &[MeshReport]) -> String {
     let _ = writeln!(
         out,
         "(par x: measured wall-clock speedup; idle x: speedup on two idle cores estimated from the \
-         scheduler's CPU time; wait %: time our threads waited for a CPU held by other processes)"
+         scheduler's CPU time, from 100k triangles; wait %: share of the single-thread runs' time the \
+         bench thread waited for a CPU held by other processes; pool wait %: the same for rayon's \
+         threads in the parallel runs)"
     );
     let _ = writeln!(
         out,
-        "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>15}",
+        "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>11} {:>15}",
         "mesh",
         "mikk/bevy",
         "mikk/mo-compat",
@@ -443,12 +467,13 @@ fn ratio_table(reports: &[MeshReport]) -> String {
         "mikk idle x",
         "fast idle x",
         "wait %",
+        "pool wait %",
         "mikk~bevy max°"
     );
     for r in reports {
         let _ = writeln!(
             out,
-            "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>15}",
+            "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>11} {:>15}",
             r.name,
             fmt(r.speed_ratio(MikkSingle, Bevy), 1),
             fmt(r.speed_ratio(MikkSingle, MeshoptCompatible), 2),
@@ -459,6 +484,7 @@ fn ratio_table(reports: &[MeshReport]) -> String {
             fmt(r.idle_two_core_speedup(MikkParallel, MikkSingle), 2),
             fmt(r.idle_two_core_speedup(FastParallel, FastSingle), 2),
             fmt(r.wait_share().map(|w| w * 100.0), 1),
+            fmt(r.pool_wait_share().map(|w| w * 100.0), 1),
             r.mikk_vs_bevy_degrees
                 .map_or_else(|| "-".to_string(), |d| format!("{d:.2e}")),
         );
@@ -634,7 +660,7 @@ fn throughput_csv(reports: &[MeshReport]) -> String {
     out.push_str(
         ",mikk_over_bevy,mikk_over_meshopt_compatible,fast_over_mikk,fast_over_meshopt_compatible,\
          mikk_parallel_speedup,fast_parallel_speedup,mikk_parallel_idle_estimate,\
-         fast_parallel_idle_estimate,cpu_wait_share,mikk_extra_heap_bytes_per_tri,\
+         fast_parallel_idle_estimate,cpu_wait_share,pool_wait_share,mikk_extra_heap_bytes_per_tri,\
          mikk_parallel_extra_heap_bytes_per_tri,mikk_vs_bevy_max_deg\n",
     );
     let num = |v: Option<f64>| v.map_or_else(String::new, |v| format!("{v:.6}"));
@@ -652,7 +678,7 @@ fn throughput_csv(reports: &[MeshReport]) -> String {
         }
         let _ = writeln!(
             out,
-            ",{},{},{},{},{},{},{},{},{},{},{},{}",
+            ",{},{},{},{},{},{},{},{},{},{},{},{},{}",
             num(r.speed_ratio(MikkSingle, Bevy)),
             num(r.speed_ratio(MikkSingle, MeshoptCompatible)),
             num(r.speed_ratio(FastSingle, MikkSingle)),
@@ -662,6 +688,7 @@ fn throughput_csv(reports: &[MeshReport]) -> String {
             num(r.idle_two_core_speedup(MikkParallel, MikkSingle)),
             num(r.idle_two_core_speedup(FastParallel, FastSingle)),
             num(r.wait_share()),
+            num(r.pool_wait_share()),
             num(r.extra_heap_per_triangle(MikkSingle)),
             num(r.extra_heap_per_triangle(MikkParallel)),
             num(r.mikk_vs_bevy_degrees),

@@ -106,6 +106,11 @@ impl Contender {
         }
     }
 
+    /// Whether it spreads its work over rayon's pool.
+    pub fn is_parallel(self) -> bool {
+        matches!(self, Contender::MikkParallel | Contender::FastParallel)
+    }
+
     /// Whether its heap use can be measured: meshoptimizer allocates through C++ `new`, which
     /// the Rust global allocator never sees.
     pub fn heap_is_visible(self) -> bool {

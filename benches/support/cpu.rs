@@ -4,8 +4,8 @@
 //! processes than about the code: when they hold the second core, rayon's worker waits. The
 //! scheduler's own accounting separates the two. For a run it gives the time the calling thread
 //! spent on a CPU (the serial part: rayon blocks the caller while its pool works), the time the
-//! pool threads spent on a CPU (the parallel part), and how long runnable threads waited for a
-//! CPU (the interference). Elsewhere than Linux every reading is `None` and the derived columns
+//! pool threads spent on a CPU (the parallel part), and how long the calling thread, ready to
+//! run, waited for a CPU (the interference). Elsewhere than Linux every reading is `None` and the derived columns
 //! stay empty.
 
 use std::collections::HashMap;
@@ -24,8 +24,10 @@ pub struct Usage {
     pub caller_cpu: f64,
     /// On-CPU time of every other thread of the process (rayon's pool), summed.
     pub others_cpu: f64,
-    /// Time runnable threads of the process waited for a CPU, summed.
-    pub waited: f64,
+    /// Time the calling thread was runnable but waited for a CPU.
+    pub caller_waited: f64,
+    /// Time the other threads were runnable but waited for a CPU, summed.
+    pub others_waited: f64,
 }
 
 impl Usage {
@@ -70,11 +72,12 @@ pub fn usage_between(before: &Snapshot, after: &Snapshot) -> Option<Usage> {
     for (tid, &(on_cpu, waiting)) in &after.threads {
         let (cpu0, wait0) = before.threads.get(tid).copied().unwrap_or((0, 0));
         let cpu = on_cpu.saturating_sub(cpu0) as f64 * 1e-9;
-        usage.waited += waiting.saturating_sub(wait0) as f64 * 1e-9;
         if *tid == caller {
             usage.caller_cpu += cpu;
+            usage.caller_waited += waiting.saturating_sub(wait0) as f64 * 1e-9;
         } else {
             usage.others_cpu += cpu;
+            usage.others_waited += waiting.saturating_sub(wait0) as f64 * 1e-9;
         }
     }
     Some(usage)
