@@ -15,7 +15,9 @@
 //! (the reference would leave it at "not preserving").
 
 use super::diagnostics::FallbackCounts;
-use super::math::{Mesh, any_orthogonal, cross, dot, is_finite3, length, reject, scale, sub};
+use super::math::{
+    Mesh, any_orthogonal, dot, face_normal, is_finite3, length, reject, scale, sub, unit,
+};
 use rayon::prelude::*;
 
 /// Tolerances a tangent must meet to be passed through untouched. They are tighter than the
@@ -30,25 +32,7 @@ pub(crate) fn effective_normal(mesh: &Mesh<'_>, corner: usize) -> [f32; 3] {
         return unit;
     }
     let [a, b, c] = mesh.triangle(corner / 3);
-    let face = cross(
-        sub(mesh.positions[b], mesh.positions[a]),
-        sub(mesh.positions[c], mesh.positions[a]),
-    );
-    unit(face).unwrap_or([0.0, 0.0, 1.0])
-}
-
-fn unit(v: [f32; 3]) -> Option<[f32; 3]> {
-    if !is_finite3(v) {
-        return None;
-    }
-    // Scale first so that tiny and huge vectors normalize without underflow or overflow.
-    let largest = v[0].abs().max(v[1].abs()).max(v[2].abs());
-    if largest == 0.0 || !largest.is_normal() {
-        return None;
-    }
-    let v = scale(v, 1.0 / largest);
-    let len = length(v);
-    Some(scale(v, 1.0 / len))
+    face_normal(mesh.positions[a], mesh.positions[b], mesh.positions[c]).unwrap_or([0.0, 0.0, 1.0])
 }
 
 #[derive(Clone, Copy, PartialEq)]

@@ -135,3 +135,37 @@ pub(crate) fn any_orthogonal(n: [f32; 3]) -> [f32; 3] {
         [1.0, 0.0, 0.0]
     }
 }
+
+/// `v` scaled to unit length, computed in f64 so that subnormal and huge vectors normalize too;
+/// `None` for zero and non-finite vectors.
+#[inline]
+pub(crate) fn unit(v: [f32; 3]) -> Option<[f32; 3]> {
+    if !is_finite3(v) {
+        return None;
+    }
+    let w = v.map(f64::from);
+    let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+    if len == 0.0 {
+        return None;
+    }
+    Some(w.map(|x| (x / len) as f32))
+}
+
+/// The unit normal of a triangle, computed in f64 so that tiny and huge triangles work too;
+/// `None` when the triangle has no area or a non-finite corner.
+pub(crate) fn face_normal(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Option<[f32; 3]> {
+    let [a, b, c] = [a, b, c].map(|p| p.map(f64::from));
+    let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if len > 0.0 && len.is_finite() {
+        Some(n.map(|x| (x / len) as f32))
+    } else {
+        None
+    }
+}

@@ -4,7 +4,7 @@
 //! Either way, corners of one vertex that end up with bit-identical normals keep sharing it, so
 //! the result is expressed like a split plan: new vertices as copies of input vertices.
 
-use super::math::{cross, dot, is_finite3, length, normalize_or_zero, scale, sub};
+use super::math::{dot, normalize_or_zero, sub, unit};
 use super::weld::{CornerTable, Key, weld_vertices};
 use super::{MeshInput, NormalMode, SplitPlan};
 use std::collections::HashMap;
@@ -19,13 +19,7 @@ pub(crate) struct GeneratedNormals {
 /// Unit face normal, or +Z for a triangle without area.
 fn face_normal(positions: &[[f32; 3]], tri: [usize; 3]) -> [f32; 3] {
     let [a, b, c] = tri.map(|v| positions[v]);
-    let n = cross(sub(b, a), sub(c, a));
-    let len = length(n);
-    if len > 0.0 && len.is_finite() {
-        scale(n, 1.0 / len)
-    } else {
-        [0.0, 0.0, 1.0]
-    }
+    super::math::face_normal(a, b, c).unwrap_or([0.0, 0.0, 1.0])
 }
 
 fn corner_angle(positions: &[[f32; 3]], tri: [usize; 3], i: usize) -> f32 {
@@ -91,12 +85,7 @@ pub(crate) fn generate(input: &MeshInput<'_>, mode: NormalMode) -> GeneratedNorm
                             ];
                         }
                     }
-                    let len = length(sum);
-                    normals[c as usize] = if len > 0.0 && is_finite3(sum) {
-                        scale(sum, 1.0 / len)
-                    } else {
-                        own
-                    };
+                    normals[c as usize] = unit(sum).unwrap_or(own);
                 }
             }
             normals

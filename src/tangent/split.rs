@@ -7,7 +7,7 @@
 //! order are unchanged.
 
 use super::diagnostics::{Diagnostics, Tally};
-use super::math::{any_orthogonal, is_finite3, length, scale};
+use super::math::{any_orthogonal, unit};
 use super::weld::NONE;
 
 /// How to rebuild the vertex buffer so that each vertex carries exactly one tangent.
@@ -87,13 +87,7 @@ pub(crate) fn plan(
     // Vertices no triangle uses still need a valid tangent in the output.
     for v in 0..vertex_count {
         if signs[v] == 0 {
-            let n = normals[v];
-            let len = length(n);
-            let n = if is_finite3(n) && len > 0.0 {
-                scale(n, 1.0 / len)
-            } else {
-                [0.0, 0.0, 1.0]
-            };
+            let n = unit(normals[v]).unwrap_or([0.0, 0.0, 1.0]);
             let t = any_orthogonal(n);
             vertex_tangents[v] = [t[0], t[1], t[2], 1.0];
         }
