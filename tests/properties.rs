@@ -1391,7 +1391,6 @@ fn regression_generated_normals_of_tiny_triangles_are_unit() {
 /// normal, is counted in `zero_normals` instead of `non_unit_normals`. Expected: zero_normals
 /// {1}, non_unit_normals {0}; actual: zero_normals {0, 1}, non_unit_normals {}.
 #[test]
-#[ignore = "bug: diagnostics count tiny (|n| < ~1e-19) normals as zero normals"]
 fn regression_tiny_normals_are_non_unit_not_zero() {
     let mesh = RandomMesh {
         positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],

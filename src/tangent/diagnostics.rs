@@ -197,7 +197,9 @@ pub(crate) fn analyze(mesh: &Mesh<'_>, options: &Options) -> Diagnostics {
         if !is_finite3(n) {
             continue;
         }
-        let len = length(n);
+        // In f64: an f32 length underflows to zero for tiny normals the core still uses.
+        let w = n.map(f64::from);
+        let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
         if len == 0.0 {
             zero_normals.add(v as u32);
         } else if (len - 1.0).abs() > 1e-3 {
