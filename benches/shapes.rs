@@ -124,3 +124,19 @@ pub fn shapes_of_size(triangles: usize) -> [Shape; 2] {
     let side = ((triangles as f64 / 2.0).sqrt().round() as u32).max(3);
     [uv_sphere(side, side), torus(side, side)]
 }
+
+/// Angle in degrees between two directions, in f64. A zero or non-finite vector counts as
+/// 180 degrees: a missing tangent is as wrong as one can be.
+pub fn angle_degrees(a: [f32; 3], b: [f32; 3]) -> f64 {
+    let a = a.map(f64::from);
+    let b = b.map(f64::from);
+    let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let la = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let lb = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
+    let cos = dot / (la * lb);
+    if cos.is_finite() {
+        cos.clamp(-1.0, 1.0).acos().to_degrees()
+    } else {
+        180.0
+    }
+}

@@ -1,5 +1,6 @@
 //! The meshes under test and the tangent generators that race on them.
 
+pub use crate::shapes::angle_degrees;
 use tspace::tangent::{self, MeshInput, Method, Options, Tangents, Weighting};
 
 /// Where a mesh comes from; the generated ones have an exact tangent per vertex.
@@ -228,22 +229,6 @@ fn bevy_tangents(mesh: &BenchMesh) -> Result<Vec<[f32; 4]>, String> {
     };
     bevy_mikktspace::generate_tangents(&mut geometry).map_err(|e| format!("{e:?}"))?;
     Ok(geometry.out)
-}
-
-/// Angle in degrees between two directions, in f64. A zero or non-finite vector counts as
-/// 180 degrees: a missing tangent is as wrong as one can be.
-pub fn angle_degrees(a: [f32; 3], b: [f32; 3]) -> f64 {
-    let a = a.map(f64::from);
-    let b = b.map(f64::from);
-    let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let la = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-    let lb = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
-    let cos = dot / (la * lb);
-    if cos.is_finite() {
-        cos.clamp(-1.0, 1.0).acos().to_degrees()
-    } else {
-        180.0
-    }
 }
 
 /// Angular error statistics over corners, in degrees.

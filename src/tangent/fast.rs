@@ -134,19 +134,12 @@ pub(crate) fn generate(mesh: &Mesh<'_>, weighting: Weighting, parallel: bool) ->
     };
 
     let mut results = vec![UNASSIGNED; table.corners.len()];
-    let chunks = table.chunks(if parallel {
+    let pieces = if parallel {
         rayon::current_num_threads() * 16
     } else {
         1
-    });
-    let mut pieces = Vec::with_capacity(chunks.len());
-    let mut rest = &mut results[..];
-    for range in chunks {
-        let len = (table.offsets[range.end] - table.offsets[range.start]) as usize;
-        let (head, tail) = rest.split_at_mut(len);
-        pieces.push((range, head));
-        rest = tail;
-    }
+    };
+    let pieces = table.split_by_class(&mut results, pieces);
     let run = |(range, out): (std::ops::Range<usize>, &mut [[f32; 4]])| {
         let base = table.offsets[range.start] as usize;
         for class in range {

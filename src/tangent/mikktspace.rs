@@ -104,20 +104,13 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<[f32; 4]> {
 
     // Results are laid out like `table.corners`, so that each vertex owns a contiguous slice.
     let mut results = vec![UNASSIGNED; table.corners.len()];
-    let chunks = table.chunks(if parallel {
+    let pieces = if parallel {
         rayon::current_num_threads() * 16
     } else {
         1
-    });
+    };
     let touched_lists: Vec<Vec<u32>> = {
-        let mut pieces = Vec::with_capacity(chunks.len());
-        let mut rest = &mut results[..];
-        for range in &chunks {
-            let len = (table.offsets[range.end] - table.offsets[range.start]) as usize;
-            let (head, tail) = rest.split_at_mut(len);
-            pieces.push((range.clone(), head));
-            rest = tail;
-        }
+        let pieces = table.split_by_class(&mut results, pieces);
         let run = |(range, out): (std::ops::Range<usize>, &mut [[f32; 4]])| {
             let mut scratch = Scratch::default();
             let mut touched = Vec::new();

@@ -56,20 +56,7 @@ pub fn reference_tangents(
     g.out
 }
 
-/// Angle in degrees between two 3-vectors (0 when both are equal, NaN-safe: NaN gives 180).
-pub fn angle_degrees(a: [f32; 3], b: [f32; 3]) -> f64 {
-    let a = a.map(f64::from);
-    let b = b.map(f64::from);
-    let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let la = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-    let lb = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
-    let cos = dot / (la * lb);
-    if cos.is_nan() {
-        180.0
-    } else {
-        cos.clamp(-1.0, 1.0).acos().to_degrees()
-    }
-}
+pub use shapes::angle_degrees;
 
 /// Whether the reference's tangent is one we pass through: finite, unit, orthogonal to `normal`.
 pub fn reference_is_valid(t: Option<[f32; 4]>, normal: [f32; 3]) -> bool {
