@@ -1,0 +1,1700 @@
+//! A lossless JSON reader and splice editor for glTF documents.
+//!
+//! tspace adds tangents to a scene and must hand back everything else exactly as it came: number
+//! spellings (`1.0`, `1e400`, `0.1000000000000000055511151231257827`), key order, whitespace and
+//! extensions nobody here has heard of. A round trip through a generic JSON value respells numbers,
+//! and a typed glTF model drops what it does not know. So the parser keeps the byte span of every
+//! value, and the [`Editor`] rewrites only the spans it is asked to change; every other byte of the
+//! output is copied from the input.
+//!
+//! The parser follows RFC 8259 strictly (no trailing commas, no comments, no leading zeros, no raw
+//! control characters in strings) with these decisions for the corners the RFC leaves open:
+//!
+//! - **Byte order mark.** glTF requires UTF-8 without a BOM, and RFC 8259 lets a parser ignore one.
+//!   A leading BOM is accepted and skipped (Windows tools add them), and never written back: the
+//!   editor's output starts after it, because an exporter must not emit one.
+//! - **Duplicate keys** in one object are an error. glTF requires unique keys, and readers disagree
+//!   about which duplicate wins, so accepting them would let two tools see two different scenes.
+//! - **Depth.** Arrays and objects nest at most [`MAX_DEPTH`] deep; deeper input is an error, so the
+//!   recursive parser's stack use is bounded whatever the input.
+//! - **Lone surrogates.** A `\uD800`-`\uDFFF` escape that is not part of a high-low pair decodes to
+//!   U+FFFD in the decoded string (Rust strings cannot hold it; JavaScript's `JSON.stringify` does
+//!   emit such escapes). The document text keeps the original escape, since untouched text is
+//!   copied verbatim. Two keys that differ only in lone surrogates therefore count as duplicates:
+//!   a rejection, never a misreading.
+//! - Invalid UTF-8 anywhere is an error.
+//!
+//! Every container node consumes at least two bytes and every scalar at least one, so the tree's
+//! size is bounded by the input's length.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::ops::Range;
+
+/// How deeply arrays and objects may nest. glTF documents need fewer than 10 levels; `extras`
+/// can hold anything, so the limit is generous.
+pub const MAX_DEPTH: usize = 128;
+
+const BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// A JSON value and where it sits in the source text.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Node {
+    /// Byte range of the value's text in the source, from its first to its last byte.
+    pub span: Range<usize>,
+    pub kind: Kind,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Kind {
+    Null,
+    Bool(bool),
+    Number(Number),
+    /// The decoded string (escapes resolved).
+    String(String),
+    Array(Vec<Node>),
+    /// Members in source order. Keys are unique (the parser rejects duplicates).
+    Object(Vec<Member>),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Member {
+    /// The decoded key.
+    pub key: String,
+    /// Byte range of the key's text, quotes included.
+    pub key_span: Range<usize>,
+    pub value: Node,
+}
+
+/// A number as spelled in the source, already checked against the JSON grammar.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Number(Box<str>);
+
+impl Number {
+    /// The source text, e.g. `-0`, `1e400`, `3.0`.
+    pub fn raw(&self) -> &str {
+        &self.0
+    }
+
+    /// The nearest `f64`; infinite when the magnitude is too large (`1e400`).
+    pub fn as_f64(&self) -> Option<f64> {
+        self.0.parse().ok()
+    }
+
+    /// The value as an unsigned integer, if it is one exactly. `3.0`, `3e2` and `-0` count (JSON
+    /// Schema calls any number without a fractional part an integer). Decided on the decimal
+    /// text, not through `f64`, which would round `9007199254740993` or `4503599627370495.6`.
+    pub fn as_u64(&self) -> Option<u64> {
+        match self.integer()? {
+            (false, v) | (true, v @ 0) => Some(v),
+            (true, _) => None,
+        }
+    }
+
+    /// The value as a signed integer, if it is one exactly (see [`Number::as_u64`]).
+    pub fn as_i64(&self) -> Option<i64> {
+        match self.integer()? {
+            (false, v) => i64::try_from(v).ok(),
+            (true, v) => 0i64.checked_sub_unsigned(v),
+        }
+    }
+
+    /// Sign and magnitude, if the number is an integer that fits in a `u64`.
+    fn integer(&self) -> Option<(bool, u64)> {
+        let (negative, unsigned) = match self.0.strip_prefix('-') {
+            Some(rest) => (true, rest),
+            None => (false, &*self.0),
+        };
+        let (mantissa, exponent) = match unsigned.find(['e', 'E']) {
+            Some(i) => (unsigned.get(..i)?, unsigned.get(i + 1..)?),
+            None => (unsigned, "0"),
+        };
+        let (int, frac) = mantissa.split_once('.').unwrap_or((mantissa, ""));
+        let digits: String = [int, frac].concat();
+        let significant = digits.trim_start_matches('0');
+        if significant.is_empty() {
+            return Some((negative, 0));
+        }
+        let trimmed = significant.trim_end_matches('0');
+        // Exponents too long for i64 are far outside u64 either way.
+        let exponent: i64 = exponent.parse().ok()?;
+        let zeros = i64::try_from(significant.len() - trimmed.len()).ok()?;
+        let frac_len = i64::try_from(frac.len()).ok()?;
+        let scale = exponent.checked_add(zeros)?.checked_sub(frac_len)?;
+        if !(0..=20).contains(&scale) {
+            return None;
+        }
+        let base: u64 = trimmed.parse().ok()?;
+        let v = 10u64
+            .checked_pow(u32::try_from(scale).ok()?)?
+            .checked_mul(base)?;
+        Some((negative, v))
+    }
+}
+
+impl Node {
+    /// The value of member `key`, if this is an object that has it.
+    pub fn get(&self, key: &str) -> Option<&Node> {
+        self.member(key).map(|m| &m.value)
+    }
+
+    pub fn member(&self, key: &str) -> Option<&Member> {
+        self.as_object()?.iter().find(|m| m.key == key)
+    }
+
+    /// Element `i`, if this is an array that long.
+    pub fn index(&self, i: usize) -> Option<&Node> {
+        self.as_array()?.get(i)
+    }
+
+    pub fn as_object(&self) -> Option<&[Member]> {
+        match &self.kind {
+            Kind::Object(members) => Some(members),
+            _ => None,
+        }
+    }
+
+    pub fn as_array(&self) -> Option<&[Node]> {
+        match &self.kind {
+            Kind::Array(elements) => Some(elements),
+            _ => None,
+        }
+    }
+
+    pub fn as_str(&self) -> Option<&str> {
+        match &self.kind {
+            Kind::String(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    pub fn as_bool(&self) -> Option<bool> {
+        match self.kind {
+            Kind::Bool(b) => Some(b),
+            _ => None,
+        }
+    }
+
+    pub fn as_number(&self) -> Option<&Number> {
+        match &self.kind {
+            Kind::Number(n) => Some(n),
+            _ => None,
+        }
+    }
+
+    pub fn as_f64(&self) -> Option<f64> {
+        self.as_number()?.as_f64()
+    }
+
+    pub fn as_u64(&self) -> Option<u64> {
+        self.as_number()?.as_u64()
+    }
+
+    pub fn as_i64(&self) -> Option<i64> {
+        self.as_number()?.as_i64()
+    }
+
+    pub fn is_null(&self) -> bool {
+        matches!(self.kind, Kind::Null)
+    }
+
+    /// "an object", "a number"…, for error messages.
+    pub fn kind_name(&self) -> &'static str {
+        match self.kind {
+            Kind::Null => "null",
+            Kind::Bool(_) => "a boolean",
+            Kind::Number(_) => "a number",
+            Kind::String(_) => "a string",
+            Kind::Array(_) => "an array",
+            Kind::Object(_) => "an object",
+        }
+    }
+}
+
+/// A parsed document: the source text and the tree of its values.
+#[derive(Clone, Debug)]
+pub struct Document<'a> {
+    source: &'a str,
+    /// Where the JSON text starts: 3 when a byte order mark was skipped, else 0.
+    body_start: usize,
+    root: Node,
+}
+
+impl<'a> Document<'a> {
+    /// Parses `bytes` as one JSON text (see the module documentation for the exact rules).
+    pub fn parse(bytes: &'a [u8]) -> Result<Self, ParseError> {
+        let source = std::str::from_utf8(bytes).map_err(|e| {
+            let at = e.valid_up_to();
+            // The prefix before the bad byte is valid, so positions can be reported in it.
+            let valid = bytes.get(..at).and_then(|b| std::str::from_utf8(b).ok());
+            ParseError::new(valid.unwrap_or(""), at, ParseErrorKind::InvalidUtf8)
+        })?;
+        let body_start = if bytes.starts_with(BOM) { BOM.len() } else { 0 };
+        let mut parser = Parser {
+            text: source,
+            bytes,
+            pos: body_start,
+            depth: 0,
+        };
+        let root = parser
+            .document()
+            .map_err(|(at, kind)| ParseError::new(source, at, kind))?;
+        Ok(Document {
+            source,
+            body_start,
+            root,
+        })
+    }
+
+    pub fn root(&self) -> &Node {
+        &self.root
+    }
+
+    /// The whole input, byte order mark included.
+    pub fn source(&self) -> &'a str {
+        self.source
+    }
+
+    /// Whether the input began with a byte order mark (which output never carries).
+    pub fn had_bom(&self) -> bool {
+        self.body_start > 0
+    }
+
+    /// The source text of `node`, exactly as written.
+    pub fn text(&self, node: &Node) -> &'a str {
+        self.source.get(node.span.clone()).unwrap_or("")
+    }
+
+    pub fn editor(&self) -> Editor<'_, 'a> {
+        Editor::new(self)
+    }
+}
+
+/// Why a text is not JSON, and where.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParseError {
+    /// Byte offset into the input.
+    pub offset: usize,
+    /// 1-based line and column (in characters) of `offset`, for people.
+    pub line: usize,
+    pub column: usize,
+    pub kind: ParseErrorKind,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ParseErrorKind {
+    InvalidUtf8,
+    /// The text ended inside a value (or held no value at all).
+    UnexpectedEnd,
+    /// `expected` says what would have been valid here.
+    Unexpected {
+        found: char,
+        expected: &'static str,
+    },
+    TrailingComma,
+    /// A raw byte below 0x20 inside a string; JSON requires it escaped.
+    ControlCharacter {
+        byte: u8,
+    },
+    InvalidEscape {
+        found: char,
+    },
+    InvalidUnicodeEscape,
+    LeadingZero,
+    /// A number missing its digits: `-`, `1.`, `1e`.
+    MissingDigits,
+    TooDeep {
+        limit: usize,
+    },
+    DuplicateKey {
+        key: String,
+    },
+    /// Something other than whitespace after the top-level value.
+    TrailingCharacters {
+        found: char,
+    },
+}
+
+impl ParseError {
+    fn new(source: &str, offset: usize, kind: ParseErrorKind) -> Self {
+        let before = source.get(..offset).unwrap_or(source);
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        let line = before.bytes().filter(|&b| b == b'\n').count() + 1;
+        let column = before.get(line_start..).map_or(0, |l| l.chars().count()) + 1;
+        ParseError {
+            offset,
+            line,
+            column,
+            kind,
+        }
+    }
+}
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "invalid JSON at line {}, column {} (byte {}): ",
+            self.line, self.column, self.offset
+        )?;
+        match &self.kind {
+            ParseErrorKind::InvalidUtf8 => write!(f, "the text is not valid UTF-8"),
+            ParseErrorKind::UnexpectedEnd => write!(f, "the text ends before the value does"),
+            ParseErrorKind::Unexpected { found, expected } => {
+                write!(f, "found {found:?} where {expected} was expected")
+            }
+            ParseErrorKind::TrailingComma => write!(f, "a comma is followed by a closing bracket"),
+            ParseErrorKind::ControlCharacter { byte } => write!(
+                f,
+                "control character 0x{byte:02X} inside a string must be escaped"
+            ),
+            ParseErrorKind::InvalidEscape { found } => {
+                write!(f, "\\{found} is not a JSON escape")
+            }
+            ParseErrorKind::InvalidUnicodeEscape => {
+                write!(f, "\\u must be followed by four hexadecimal digits")
+            }
+            ParseErrorKind::LeadingZero => write!(f, "numbers must not have leading zeros"),
+            ParseErrorKind::MissingDigits => write!(f, "a number is missing its digits"),
+            ParseErrorKind::TooDeep { limit } => {
+                write!(f, "arrays and objects nest more than {limit} levels deep")
+            }
+            ParseErrorKind::DuplicateKey { key } => {
+                write!(f, "the key {key:?} appears twice in one object")
+            }
+            ParseErrorKind::TrailingCharacters { found } => {
+                write!(f, "found {found:?} after the end of the top-level value")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ParseError {}
+
+type Fail = (usize, ParseErrorKind);
+
+struct Parser<'a> {
+    text: &'a str,
+    bytes: &'a [u8],
+    pos: usize,
+    depth: usize,
+}
+
+impl Parser<'_> {
+    fn document(&mut self) -> Result<Node, Fail> {
+        self.skip_ws();
+        let root = self.value()?;
+        self.skip_ws();
+        if self.pos < self.bytes.len() {
+            return Err((
+                self.pos,
+                ParseErrorKind::TrailingCharacters {
+                    found: self.char_here(),
+                },
+            ));
+        }
+        Ok(root)
+    }
+
+    fn peek(&self) -> Option<u8> {
+        self.bytes.get(self.pos).copied()
+    }
+
+    /// The character at `pos`, for messages. `pos` is always on a character boundary when this
+    /// is called, because the parser only stops on ASCII bytes or at the start of a character.
+    fn char_here(&self) -> char {
+        self.text
+            .get(self.pos..)
+            .and_then(|s| s.chars().next())
+            .unwrap_or('\u{FFFD}')
+    }
+
+    fn unexpected(&self, expected: &'static str) -> Fail {
+        match self.peek() {
+            None => (self.pos, ParseErrorKind::UnexpectedEnd),
+            Some(_) => (
+                self.pos,
+                ParseErrorKind::Unexpected {
+                    found: self.char_here(),
+                    expected,
+                },
+            ),
+        }
+    }
+
+    fn skip_ws(&mut self) {
+        while let Some(b' ' | b'\t' | b'\n' | b'\r') = self.peek() {
+            self.pos += 1;
+        }
+    }
+
+    fn value(&mut self) -> Result<Node, Fail> {
+        let start = self.pos;
+        let kind = match self.peek() {
+            Some(b'{') => self.object()?,
+            Some(b'[') => self.array()?,
+            Some(b'"') => Kind::String(self.string()?),
+            Some(b'-' | b'0'..=b'9') => self.number()?,
+            Some(b't') => self.literal(b"true", Kind::Bool(true))?,
+            Some(b'f') => self.literal(b"false", Kind::Bool(false))?,
+            Some(b'n') => self.literal(b"null", Kind::Null)?,
+            _ => return Err(self.unexpected("a value")),
+        };
+        Ok(Node {
+            span: start..self.pos,
+            kind,
+        })
+    }
+
+    fn literal(&mut self, word: &[u8], kind: Kind) -> Result<Kind, Fail> {
+        for &expected in word {
+            if self.peek() != Some(expected) {
+                return Err(self.unexpected("a value"));
+            }
+            self.pos += 1;
+        }
+        Ok(kind)
+    }
+
+    fn enter(&mut self) -> Result<(), Fail> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return Err((self.pos, ParseErrorKind::TooDeep { limit: MAX_DEPTH }));
+        }
+        Ok(())
+    }
+
+    fn array(&mut self) -> Result<Kind, Fail> {
+        self.enter()?;
+        self.pos += 1; // '['
+        let mut elements = Vec::new();
+        self.skip_ws();
+        if self.peek() == Some(b']') {
+            self.pos += 1;
+            self.depth -= 1;
+            return Ok(Kind::Array(elements));
+        }
+        loop {
+            elements.push(self.value()?);
+            self.skip_ws();
+            match self.peek() {
+                Some(b',') => {
+                    self.pos += 1;
+                    self.skip_ws();
+                    if self.peek() == Some(b']') {
+                        return Err((self.pos, ParseErrorKind::TrailingComma));
+                    }
+                }
+                Some(b']') => {
+                    self.pos += 1;
+                    self.depth -= 1;
+                    return Ok(Kind::Array(elements));
+                }
+                _ => return Err(self.unexpected("',' or ']'")),
+            }
+        }
+    }
+
+    fn object(&mut self) -> Result<Kind, Fail> {
+        self.enter()?;
+        self.pos += 1; // '{'
+        let mut members = Vec::new();
+        self.skip_ws();
+        if self.peek() == Some(b'}') {
+            self.pos += 1;
+            self.depth -= 1;
+            return Ok(Kind::Object(members));
+        }
+        loop {
+            if self.peek() != Some(b'"') {
+                return Err(self.unexpected("a key (a string)"));
+            }
+            let key_start = self.pos;
+            let key = self.string()?;
+            let key_span = key_start..self.pos;
+            self.skip_ws();
+            if self.peek() != Some(b':') {
+                return Err(self.unexpected("':'"));
+            }
+            self.pos += 1;
+            self.skip_ws();
+            let value = self.value()?;
+            members.push(Member {
+                key,
+                key_span,
+                value,
+            });
+            self.skip_ws();
+            match self.peek() {
+                Some(b',') => {
+                    self.pos += 1;
+                    self.skip_ws();
+                    if self.peek() == Some(b'}') {
+                        return Err((self.pos, ParseErrorKind::TrailingComma));
+                    }
+                }
+                Some(b'}') => {
+                    self.pos += 1;
+                    self.depth -= 1;
+                    check_unique_keys(&members)?;
+                    return Ok(Kind::Object(members));
+                }
+                _ => return Err(self.unexpected("',' or '}'")),
+            }
+        }
+    }
+
+    fn string(&mut self) -> Result<String, Fail> {
+        self.pos += 1; // opening quote
+        let mut out = String::new();
+        loop {
+            // Copy the run of plain characters in one piece. It starts and ends next to ASCII
+            // bytes (or the end), so both ends are character boundaries.
+            let run_start = self.pos;
+            while let Some(b) = self.peek() {
+                if b == b'"' || b == b'\\' || b < 0x20 {
+                    break;
+                }
+                self.pos += 1;
+            }
+            out.push_str(self.text.get(run_start..self.pos).unwrap_or(""));
+            match self.peek() {
+                None => return Err((self.pos, ParseErrorKind::UnexpectedEnd)),
+                Some(b'"') => {
+                    self.pos += 1;
+                    return Ok(out);
+                }
+                Some(b'\\') => self.escape(&mut out)?,
+                Some(byte) => return Err((self.pos, ParseErrorKind::ControlCharacter { byte })),
+            }
+        }
+    }
+
+    fn escape(&mut self, out: &mut String) -> Result<(), Fail> {
+        let at = self.pos;
+        self.pos += 1; // backslash
+        let Some(b) = self.peek() else {
+            return Err((self.pos, ParseErrorKind::UnexpectedEnd));
+        };
+        let c = match b {
+            b'"' => '"',
+            b'\\' => '\\',
+            b'/' => '/',
+            b'b' => '\u{8}',
+            b'f' => '\u{c}',
+            b'n' => '\n',
+            b'r' => '\r',
+            b't' => '\t',
+            b'u' => {
+                self.pos += 1;
+                let unit = self.hex4(at)?;
+                out.push(self.surrogate_pair(unit)?);
+                return Ok(());
+            }
+            _ => {
+                return Err((
+                    at,
+                    ParseErrorKind::InvalidEscape {
+                        found: self.char_here(),
+                    },
+                ));
+            }
+        };
+        self.pos += 1;
+        out.push(c);
+        Ok(())
+    }
+
+    /// Completes a `\u` escape whose first code unit has been read: joins a high surrogate with
+    /// a following `\u` low surrogate, and turns lone surrogates into U+FFFD.
+    fn surrogate_pair(&mut self, unit: u16) -> Result<char, Fail> {
+        if !(0xD800..0xDC00).contains(&unit) {
+            return Ok(char::from_u32(u32::from(unit)).unwrap_or('\u{FFFD}'));
+        }
+        let rest = self.bytes.get(self.pos..).unwrap_or(&[]);
+        if rest.starts_with(b"\\u") {
+            let save = self.pos;
+            self.pos += 2;
+            let low = self.hex4(save)?;
+            if (0xDC00..0xE000).contains(&low) {
+                let c = 0x10000 + ((u32::from(unit) - 0xD800) << 10) + (u32::from(low) - 0xDC00);
+                return Ok(char::from_u32(c).unwrap_or('\u{FFFD}'));
+            }
+            // Not a low surrogate: the high one stands alone, and the next escape is read again
+            // on its own.
+            self.pos = save;
+        }
+        Ok('\u{FFFD}')
+    }
+
+    fn hex4(&mut self, escape_start: usize) -> Result<u16, Fail> {
+        let mut v: u16 = 0;
+        for _ in 0..4 {
+            let digit = self
+                .peek()
+                .and_then(|b| (b as char).to_digit(16))
+                .ok_or((escape_start, ParseErrorKind::InvalidUnicodeEscape))?;
+            // Four hex digits fit in 16 bits exactly.
+            v = (v << 4) | digit as u16;
+            self.pos += 1;
+        }
+        Ok(v)
+    }
+
+    fn number(&mut self) -> Result<Kind, Fail> {
+        let start = self.pos;
+        if self.peek() == Some(b'-') {
+            self.pos += 1;
+        }
+        match self.peek() {
+            Some(b'0') => {
+                self.pos += 1;
+                if matches!(self.peek(), Some(b'0'..=b'9')) {
+                    return Err((self.pos - 1, ParseErrorKind::LeadingZero));
+                }
+            }
+            Some(b'1'..=b'9') => self.digits(),
+            _ => return Err((self.pos, ParseErrorKind::MissingDigits)),
+        }
+        if self.peek() == Some(b'.') {
+            self.pos += 1;
+            self.required_digits()?;
+        }
+        if let Some(b'e' | b'E') = self.peek() {
+            self.pos += 1;
+            if let Some(b'+' | b'-') = self.peek() {
+                self.pos += 1;
+            }
+            self.required_digits()?;
+        }
+        let raw = self.text.get(start..self.pos).unwrap_or("0");
+        Ok(Kind::Number(Number(raw.into())))
+    }
+
+    fn digits(&mut self) {
+        while let Some(b'0'..=b'9') = self.peek() {
+            self.pos += 1;
+        }
+    }
+
+    fn required_digits(&mut self) -> Result<(), Fail> {
+        let start = self.pos;
+        self.digits();
+        if self.pos == start {
+            return Err((self.pos, ParseErrorKind::MissingDigits));
+        }
+        Ok(())
+    }
+}
+
+/// Sorting beats hashing here: no hasher to seed against hostile keys, and no borrow of the
+/// member list while it is built.
+fn check_unique_keys(members: &[Member]) -> Result<(), Fail> {
+    if members.len() < 2 {
+        return Ok(());
+    }
+    let mut order: Vec<usize> = (0..members.len()).collect();
+    order.sort_by(|&a, &b| members[a].key.cmp(&members[b].key).then(a.cmp(&b)));
+    // Report the duplicate that comes first in the text.
+    let mut first_dup: Option<usize> = None;
+    for pair in order.windows(2) {
+        if let [a, b] = *pair {
+            if members[a].key == members[b].key {
+                first_dup = Some(first_dup.map_or(b, |d| d.min(b)));
+            }
+        }
+    }
+    match first_dup.and_then(|i| members.get(i)) {
+        Some(m) => Err((
+            m.key_span.start,
+            ParseErrorKind::DuplicateKey { key: m.key.clone() },
+        )),
+        None => Ok(()),
+    }
+}
+
+/// `s` as a JSON string literal, quotes included.
+pub fn escape_str(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c if (c as u32) < 0x20 => out.push_str(&format!("\\u{:04x}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// `v` as a JSON number that reads back as exactly `v` (shortest round-trip digits), or `None`
+/// for NaN and infinities, which JSON cannot express.
+///
+/// Plain notation for ordinary magnitudes keeps files readable (`0.5`, `1`, `-0`); exponent
+/// notation at the extremes avoids 40-digit spellings of `1e-40` or `f32::MAX`.
+pub fn f32_text(v: f32) -> Option<String> {
+    if !v.is_finite() {
+        return None;
+    }
+    let magnitude = v.abs();
+    if magnitude != 0.0 && !(1e-5..1e16).contains(&magnitude) {
+        Some(format!("{v:e}"))
+    } else {
+        Some(format!("{v}"))
+    }
+}
+
+/// A problem with a requested edit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EditError {
+    /// The edit needs an object and the node is something else.
+    NotAnObject { span: Range<usize> },
+    /// The edit needs an array and the node (or the member's value) is something else.
+    NotAnArray { span: Range<usize> },
+    /// Adding the member would duplicate a key.
+    MemberExists { key: String },
+    /// The new text is not one JSON value.
+    InvalidText { text: String, error: ParseError },
+    /// Two edits change overlapping text (for example a value and a member inside it).
+    Overlap {
+        first: Range<usize>,
+        second: Range<usize>,
+    },
+    /// An edit refers to text outside the document: its node came from another document.
+    ForeignNode { span: Range<usize> },
+}
+
+impl fmt::Display for EditError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EditError::NotAnObject { span } => {
+                write!(f, "the value at bytes {span:?} is not an object")
+            }
+            EditError::NotAnArray { span } => {
+                write!(f, "the value at bytes {span:?} is not an array")
+            }
+            EditError::MemberExists { key } => {
+                write!(f, "the object already has a member {key:?}")
+            }
+            EditError::InvalidText { text, error } => {
+                let shown: String = text.chars().take(60).collect();
+                write!(
+                    f,
+                    "replacement text {shown:?} is not one JSON value: {error}"
+                )
+            }
+            EditError::Overlap { first, second } => write!(
+                f,
+                "two edits overlap: bytes {first:?} and bytes {second:?} of the original"
+            ),
+            EditError::ForeignNode { span } => write!(
+                f,
+                "an edit refers to bytes {span:?}, which are not a value of this document"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for EditError {}
+
+/// Collects edits against a [`Document`] and renders the edited text.
+///
+/// Edits name nodes of the document they were made from (passing a node of another document is
+/// a contract violation; it is caught as [`EditError::ForeignNode`] where it shows, never a panic).
+/// Each edit is checked as it is made; edits that change overlapping text are reported by
+/// [`Editor::render`] as [`EditError::Overlap`]. Members and elements added to one container
+/// are written in the order they were added. Nothing outside the edited spans changes.
+#[derive(Debug)]
+pub struct Editor<'d, 'a> {
+    doc: &'d Document<'a>,
+    replacements: Vec<(Range<usize>, String)>,
+    /// Keyed by the container's start offset, which is unique among containers.
+    objects: BTreeMap<usize, ObjectEdit>,
+    arrays: BTreeMap<usize, ArrayEdit>,
+}
+
+#[derive(Debug)]
+struct ObjectEdit {
+    open: usize,
+    /// Per original member: key span, value span, key, removed.
+    members: Vec<(Range<usize>, Range<usize>, String, bool)>,
+    added: Vec<(String, NewValue)>,
+}
+
+#[derive(Debug)]
+enum NewValue {
+    Text(String),
+    /// An array member created by [`Editor::push_to_array_member`]; grows with each push.
+    Array(Vec<String>),
+}
+
+#[derive(Debug)]
+struct ArrayEdit {
+    open: usize,
+    elements: Vec<Range<usize>>,
+    added: Vec<String>,
+}
+
+impl<'d, 'a> Editor<'d, 'a> {
+    pub fn new(doc: &'d Document<'a>) -> Self {
+        Editor {
+            doc,
+            replacements: Vec::new(),
+            objects: BTreeMap::new(),
+            arrays: BTreeMap::new(),
+        }
+    }
+
+    /// Replaces `node`'s text with `text`, which must be one JSON value.
+    pub fn replace(&mut self, node: &Node, text: impl Into<String>) -> Result<(), EditError> {
+        let text = checked_text(text.into())?;
+        self.check_span(&node.span)?;
+        self.replacements.push((node.span.clone(), text));
+        Ok(())
+    }
+
+    /// Adds member `key` at the end of `object`. Fails if the key is already there.
+    pub fn insert_member(
+        &mut self,
+        object: &Node,
+        key: &str,
+        text: impl Into<String>,
+    ) -> Result<(), EditError> {
+        let text = checked_text(text.into())?;
+        let edit = self.object_edit(object)?;
+        if edit.has_key(key) {
+            return Err(EditError::MemberExists { key: key.into() });
+        }
+        edit.added.push((key.into(), NewValue::Text(text)));
+        Ok(())
+    }
+
+    /// Replaces member `key`'s value, or adds the member if the object lacks it.
+    pub fn set_member(
+        &mut self,
+        object: &Node,
+        key: &str,
+        text: impl Into<String>,
+    ) -> Result<(), EditError> {
+        let text = checked_text(text.into())?;
+        let edit = self.object_edit(object)?;
+        if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
+            *value = NewValue::Text(text);
+            return Ok(());
+        }
+        match object
+            .as_object()
+            .and_then(|ms| ms.iter().position(|m| m.key == key))
+        {
+            Some(i) if !edit.members.get(i).is_some_and(|m| m.3) => {
+                let span = object
+                    .as_object()
+                    .and_then(|ms| ms.get(i))
+                    .map(|m| m.value.span.clone())
+                    .unwrap_or(0..0);
+                self.replacements.push((span, text));
+            }
+            _ => edit.added.push((key.into(), NewValue::Text(text))),
+        }
+        Ok(())
+    }
+
+    /// Removes member `key` (with its comma) from `object`. Returns whether it was there.
+    pub fn remove_member(&mut self, object: &Node, key: &str) -> Result<bool, EditError> {
+        let edit = self.object_edit(object)?;
+        if let Some(i) = edit.added.iter().position(|(k, _)| k == key) {
+            edit.added.remove(i);
+            return Ok(true);
+        }
+        match edit.members.iter_mut().find(|m| m.2 == key && !m.3) {
+            Some(member) => {
+                member.3 = true;
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+
+    /// Appends an element to `array` and returns its index in the edited array.
+    pub fn append_element(
+        &mut self,
+        array: &Node,
+        text: impl Into<String>,
+    ) -> Result<usize, EditError> {
+        let text = checked_text(text.into())?;
+        let Some(elements) = array.as_array() else {
+            return Err(EditError::NotAnArray {
+                span: array.span.clone(),
+            });
+        };
+        self.check_span(&array.span)?;
+        let edit = self
+            .arrays
+            .entry(array.span.start)
+            .or_insert_with(|| ArrayEdit {
+                open: array.span.start,
+                elements: elements.iter().map(|e| e.span.clone()).collect(),
+                added: Vec::new(),
+            });
+        edit.added.push(text);
+        Ok(edit.elements.len() + edit.added.len() - 1)
+    }
+
+    /// Appends an element to the array in member `key` of `object`, creating the member (as a
+    /// one-element array at the end of the object) when the object lacks it. Returns the new
+    /// element's index. This is how a glTF document gains `accessors` or `bufferViews`.
+    pub fn push_to_array_member(
+        &mut self,
+        object: &Node,
+        key: &str,
+        text: impl Into<String>,
+    ) -> Result<usize, EditError> {
+        let text = checked_text(text.into())?;
+        let edit = self.object_edit(object)?;
+        if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
+            return match value {
+                NewValue::Array(items) => {
+                    items.push(text);
+                    Ok(items.len() - 1)
+                }
+                NewValue::Text(_) => Err(EditError::MemberExists { key: key.into() }),
+            };
+        }
+        let existing = object
+            .as_object()
+            .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
+        match existing {
+            Some((i, member)) if !edit.members.get(i).is_some_and(|m| m.3) => {
+                self.append_element(&member.value, text)
+            }
+            _ => {
+                edit.added.push((key.into(), NewValue::Array(vec![text])));
+                Ok(0)
+            }
+        }
+    }
+
+    fn check_span(&self, span: &Range<usize>) -> Result<(), EditError> {
+        let source = self.doc.source;
+        if span.start < self.doc.body_start
+            || span.start > span.end
+            || source.get(span.clone()).is_none()
+        {
+            return Err(EditError::ForeignNode { span: span.clone() });
+        }
+        Ok(())
+    }
+
+    fn object_edit(&mut self, object: &Node) -> Result<&mut ObjectEdit, EditError> {
+        let Some(members) = object.as_object() else {
+            return Err(EditError::NotAnObject {
+                span: object.span.clone(),
+            });
+        };
+        self.check_span(&object.span)?;
+        Ok(self
+            .objects
+            .entry(object.span.start)
+            .or_insert_with(|| ObjectEdit {
+                open: object.span.start,
+                members: members
+                    .iter()
+                    .map(|m| {
+                        (
+                            m.key_span.clone(),
+                            m.value.span.clone(),
+                            m.key.clone(),
+                            false,
+                        )
+                    })
+                    .collect(),
+                added: Vec::new(),
+            }))
+    }
+
+    /// The edited document. Fails only on overlapping edits or nodes from another document.
+    pub fn render(&self) -> Result<String, EditError> {
+        let source = self.doc.source;
+        let mut pieces: Vec<(Range<usize>, String)> = self.replacements.clone();
+        for edit in self.arrays.values() {
+            edit.pieces(source, &mut pieces)?;
+        }
+        for edit in self.objects.values() {
+            edit.pieces(source, &mut pieces)?;
+        }
+        // Stable: insertions at one offset keep the order in which they were made, and an
+        // insertion at the start of a replaced span goes before it.
+        pieces.sort_by_key(|(range, _)| (range.start, range.end));
+
+        let mut out = String::with_capacity(source.len());
+        let mut cursor = self.doc.body_start;
+        let mut previous = cursor..cursor;
+        for (range, text) in &pieces {
+            if range.start < cursor {
+                return Err(EditError::Overlap {
+                    first: previous,
+                    second: range.clone(),
+                });
+            }
+            let kept = source
+                .get(cursor..range.start)
+                .ok_or(EditError::ForeignNode {
+                    span: range.clone(),
+                })?;
+            out.push_str(kept);
+            out.push_str(text);
+            cursor = range.end;
+            previous = range.clone();
+        }
+        out.push_str(source.get(cursor..).unwrap_or(""));
+        Ok(out)
+    }
+}
+
+fn checked_text(text: String) -> Result<String, EditError> {
+    // Parsing each new fragment keeps the output valid JSON whatever the caller passes in, and
+    // costs little next to the document itself.
+    match Document::parse(text.as_bytes()) {
+        Ok(doc) if !doc.had_bom() => Ok(text),
+        Ok(_) => Err(EditError::InvalidText {
+            error: ParseError::new(
+                &text,
+                0,
+                ParseErrorKind::Unexpected {
+                    found: '\u{FEFF}',
+                    expected: "a value",
+                },
+            ),
+            text,
+        }),
+        Err(error) => Err(EditError::InvalidText { text, error }),
+    }
+}
+
+fn slice(source: &str, range: Range<usize>) -> Result<&str, EditError> {
+    source
+        .get(range.clone())
+        .ok_or(EditError::ForeignNode { span: range })
+}
+
+/// The whitespace that precedes an element, given the gap between it and the previous one
+/// (`ws , ws`): the part after the comma.
+fn lead_after_comma(gap: &str) -> &str {
+    gap.find(',').map_or("", |i| gap.get(i + 1..).unwrap_or(""))
+}
+
+impl ObjectEdit {
+    fn has_key(&self, key: &str) -> bool {
+        self.members.iter().any(|m| m.2 == key && !m.3) || self.added.iter().any(|(k, _)| k == key)
+    }
+
+    fn pieces(&self, source: &str, out: &mut Vec<(Range<usize>, String)>) -> Result<(), EditError> {
+        let n = self.members.len();
+        let start = |i: usize| self.members.get(i).map_or(0, |m| m.0.start);
+        let end = |i: usize| self.members.get(i).map_or(0, |m| m.1.end);
+        let removed = |i: usize| self.members.get(i).is_some_and(|m| m.3);
+
+        // Removals go by runs of adjacent removed members, so that each comma is deleted once:
+        // a run after a kept member takes the comma before it; a run at the start takes the
+        // comma after it; a run that is everything takes no comma.
+        let mut i = 0;
+        while i < n {
+            if !removed(i) {
+                i += 1;
+                continue;
+            }
+            let first = i;
+            while i < n && removed(i) {
+                i += 1;
+            }
+            let last = i - 1;
+            let range = if first > 0 {
+                end(first - 1)..end(last)
+            } else if i < n {
+                start(first)..start(i)
+            } else {
+                start(first)..end(last)
+            };
+            slice(source, range.clone())?;
+            out.push((range, String::new()));
+        }
+
+        if self.added.is_empty() {
+            return Ok(());
+        }
+        // New members copy the layout of the last existing ones: the whitespace before a key,
+        // and the spelling of the colon.
+        let (at, lead, colon) = match n {
+            0 => (self.open + 1, "", ":"),
+            _ => {
+                let last = &self.members[n - 1];
+                let lead = if n >= 2 {
+                    lead_after_comma(slice(source, end(n - 2)..start(n - 1))?)
+                } else {
+                    slice(source, self.open + 1..start(0))?
+                };
+                let colon = slice(source, last.0.end..last.1.start)?;
+                (end(n - 1), lead, colon)
+            }
+        };
+        let mut comma = self.members.iter().any(|m| !m.3);
+        let mut text = String::new();
+        for (key, value) in &self.added {
+            if comma {
+                text.push(',');
+                text.push_str(lead);
+            }
+            comma = true;
+            text.push_str(&escape_str(key));
+            text.push_str(colon);
+            match value {
+                NewValue::Text(t) => text.push_str(t),
+                NewValue::Array(items) => {
+                    text.push('[');
+                    text.push_str(&items.join(","));
+                    text.push(']');
+                }
+            }
+        }
+        out.push((at..at, text));
+        Ok(())
+    }
+}
+
+impl ArrayEdit {
+    fn pieces(&self, source: &str, out: &mut Vec<(Range<usize>, String)>) -> Result<(), EditError> {
+        let n = self.elements.len();
+        let (at, lead) = match self.elements.as_slice() {
+            [] => (self.open + 1, ""),
+            [only] => (only.end, slice(source, self.open + 1..only.start)?),
+            [.., before, last] => (
+                last.end,
+                lead_after_comma(slice(source, before.end..last.start)?),
+            ),
+        };
+        let mut text = String::new();
+        for (i, item) in self.added.iter().enumerate() {
+            if n > 0 || i > 0 {
+                text.push(',');
+                text.push_str(lead);
+            }
+            text.push_str(item);
+        }
+        out.push((at..at, text));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn parse(s: &str) -> Result<Document<'_>, ParseError> {
+        Document::parse(s.as_bytes())
+    }
+
+    fn kind_of(s: &str) -> ParseErrorKind {
+        match parse(s) {
+            Ok(_) => panic!("{s:?} parsed"),
+            Err(e) => e.kind,
+        }
+    }
+
+    fn edited(s: &str, f: impl FnOnce(&Document<'_>, &mut Editor<'_, '_>)) -> String {
+        let doc = parse(s).unwrap();
+        let mut ed = doc.editor();
+        f(&doc, &mut ed);
+        let out = ed.render().unwrap();
+        // Every edit must leave valid JSON behind.
+        parse(&out).unwrap_or_else(|e| panic!("{out:?}: {e}"));
+        out
+    }
+
+    const ODD: &str = "\r\n\t {  \"a\" :[1 ,2.50,-0, 1e400 ,0.1000000000000000055511151231257827,\
+        18446744073709551616],\n\"s\":\"\\u00e9\\ud83d\\ude00\\/\\\"x\\\\\", \"é\": {\"ext\" :{}},\
+        \"n\":null ,\"t\":true,\"f\":false, \"e\":[ ] }\n\n";
+
+    #[test]
+    fn untouched_round_trip_is_byte_identical() {
+        let doc = parse(ODD).unwrap();
+        assert_eq!(doc.editor().render().unwrap(), ODD);
+        let root = doc.root();
+        assert_eq!(root.span, 4..ODD.trim_end().len());
+        let a = root.get("a").unwrap();
+        assert_eq!(doc.text(a.index(1).unwrap()), "2.50");
+        assert_eq!(a.index(2).unwrap().as_number().unwrap().raw(), "-0");
+        assert_eq!(a.index(3).unwrap().as_f64(), Some(f64::INFINITY));
+        assert_eq!(a.index(4).unwrap().as_f64(), Some(0.1));
+        assert_eq!(a.index(5).unwrap().as_u64(), None);
+        assert_eq!(root.get("s").unwrap().as_str(), Some("é😀/\"x\\"));
+        assert!(root.get("é").unwrap().get("ext").is_some());
+        assert!(root.get("n").unwrap().is_null());
+        assert_eq!(root.get("t").unwrap().as_bool(), Some(true));
+        assert_eq!(
+            root.get("e").unwrap().as_array().map(<[Node]>::len),
+            Some(0)
+        );
+        assert!(root.get("missing").is_none() && root.index(0).is_none());
+    }
+
+    #[test]
+    fn fixtures_round_trip() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures");
+        for name in [
+            "Avocado/Avocado.gltf",
+            "Lantern/Lantern.gltf",
+            "BoxTextured_embedded/BoxTextured.gltf",
+            "MultiUVTest/MultiUVTest.gltf",
+        ] {
+            let bytes = std::fs::read(format!("{dir}/{name}")).unwrap();
+            let doc = Document::parse(&bytes).unwrap();
+            assert_eq!(
+                doc.editor().render().unwrap().as_bytes(),
+                &bytes[..],
+                "{name}"
+            );
+            assert!(doc.root().get("accessors").is_some(), "{name}");
+        }
+    }
+
+    #[test]
+    fn integer_accessors() {
+        let doc = parse(
+            "[3, 3.0, 3e2, -0, -7, 1.5, 9007199254740993.0, 18446744073709551615, -1e0, \
+             4503599627370495.6, 1e400, 0e99999999999999999999, 12.3400e2, 1e-1, \
+             -9223372036854775808, 9223372036854775808, 1844674407370955161.5e1]",
+        )
+        .unwrap();
+        let v: Vec<_> = doc.root().as_array().unwrap().iter().collect();
+        assert_eq!(v[0].as_u64(), Some(3));
+        assert_eq!(v[1].as_u64(), Some(3));
+        assert_eq!(v[2].as_u64(), Some(300));
+        assert_eq!(v[3].as_u64(), Some(0));
+        assert_eq!(v[4].as_u64(), None);
+        assert_eq!(v[4].as_i64(), Some(-7));
+        assert_eq!(v[5].as_u64(), None);
+        assert_eq!(v[6].as_u64(), Some(9007199254740993), "exact beyond 2^53");
+        assert_eq!(v[7].as_u64(), Some(u64::MAX));
+        assert_eq!(v[8].as_i64(), Some(-1));
+        assert_eq!(v[9].as_u64(), None, "f64 would round this to an integer");
+        assert_eq!(v[10].as_u64(), None);
+        assert_eq!(v[11].as_u64(), Some(0));
+        assert_eq!(v[12].as_u64(), Some(1234));
+        assert_eq!(v[13].as_u64(), None);
+        assert_eq!(v[14].as_i64(), Some(i64::MIN));
+        assert_eq!(v[15].as_i64(), None);
+        assert_eq!(v[15].as_u64(), Some(1 << 63));
+        assert_eq!(v[16].as_u64(), Some(18446744073709551615));
+    }
+
+    #[test]
+    fn rejections() {
+        use ParseErrorKind as K;
+        assert_eq!(kind_of("[1,]"), K::TrailingComma);
+        assert_eq!(kind_of("{\"a\":1,}"), K::TrailingComma);
+        assert_eq!(kind_of("[01]"), K::LeadingZero);
+        assert_eq!(kind_of("-01"), K::LeadingZero);
+        assert_eq!(kind_of("1."), K::MissingDigits);
+        assert_eq!(kind_of("1e+"), K::MissingDigits);
+        assert_eq!(kind_of("-"), K::MissingDigits);
+        assert!(matches!(kind_of("+1"), K::Unexpected { found: '+', .. }));
+        assert!(matches!(kind_of(".5"), K::Unexpected { found: '.', .. }));
+        assert_eq!(kind_of("\"a\tb\""), K::ControlCharacter { byte: 9 });
+        assert_eq!(kind_of("\"\\x\""), K::InvalidEscape { found: 'x' });
+        assert_eq!(kind_of("\"\\u12G4\""), K::InvalidUnicodeEscape);
+        assert_eq!(kind_of("\"abc"), K::UnexpectedEnd);
+        assert_eq!(kind_of(""), K::UnexpectedEnd);
+        assert_eq!(kind_of("  "), K::UnexpectedEnd);
+        assert_eq!(kind_of("[1] x"), K::TrailingCharacters { found: 'x' });
+        assert_eq!(kind_of("{} {}"), K::TrailingCharacters { found: '{' });
+        assert!(matches!(kind_of("{1:2}"), K::Unexpected { .. }));
+        assert!(matches!(
+            kind_of("{\"a\" 1}"),
+            K::Unexpected { found: '1', .. }
+        ));
+        assert!(matches!(kind_of("[1 2]"), K::Unexpected { found: '2', .. }));
+        assert!(matches!(kind_of("tru"), K::UnexpectedEnd));
+        assert!(matches!(kind_of("nul1"), K::Unexpected { .. }));
+        assert!(matches!(kind_of("NaN"), K::Unexpected { .. }));
+        assert!(matches!(
+            kind_of("[1]\u{a0}"),
+            K::TrailingCharacters { found: '\u{a0}' }
+        ));
+        assert!(matches!(kind_of("// c\n{}"), K::Unexpected { .. }));
+        assert_eq!(
+            Document::parse(b"[\"\xff\"]").unwrap_err().kind,
+            K::InvalidUtf8
+        );
+        let e = parse("{\"a\":1,\n \"b\":2, \"a\":3}").unwrap_err();
+        assert_eq!(e.kind, K::DuplicateKey { key: "a".into() });
+        assert_eq!((e.offset, e.line, e.column), (16, 2, 9));
+        let msg = e.to_string();
+        assert!(
+            msg.contains("line 2, column 9") && msg.contains("\"a\" appears twice"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn depth_limit() {
+        let bomb = "[".repeat(100_000);
+        assert_eq!(kind_of(&bomb), ParseErrorKind::TooDeep { limit: MAX_DEPTH });
+        let objects = "{\"a\":".repeat(100_000);
+        assert_eq!(
+            kind_of(&objects),
+            ParseErrorKind::TooDeep { limit: MAX_DEPTH }
+        );
+        let ok = format!("{}{}", "[".repeat(MAX_DEPTH), "]".repeat(MAX_DEPTH));
+        assert!(parse(&ok).is_ok());
+        let deep = format!("{}{}", "[".repeat(MAX_DEPTH + 1), "]".repeat(MAX_DEPTH + 1));
+        assert_eq!(kind_of(&deep), ParseErrorKind::TooDeep { limit: MAX_DEPTH });
+        // Depth is nesting, not the number of containers seen.
+        let wide = format!("[{}]", vec!["[[]]"; 10_000].join(","));
+        assert!(parse(&wide).is_ok());
+    }
+
+    #[test]
+    fn surrogates() {
+        let s = |t: &str| parse(t).unwrap().root().as_str().unwrap().to_owned();
+        assert_eq!(s(r#""\ud83d\ude00""#), "😀");
+        assert_eq!(s(r#""\uD83D\uDE00""#), "😀");
+        assert_eq!(s(r#""\ud800""#), "\u{fffd}");
+        assert_eq!(s(r#""\udc00x""#), "\u{fffd}x");
+        assert_eq!(
+            s(r#""\ud800\u0041""#),
+            "\u{fffd}A",
+            "high surrogate then a non-surrogate"
+        );
+        assert_eq!(s(r#""\ud800\ud800\udc00""#), "\u{fffd}\u{10000}");
+        assert_eq!(
+            kind_of(r#""\ud800\u00""#),
+            ParseErrorKind::InvalidUnicodeEscape
+        );
+        // The text keeps the original escape.
+        let text = r#"{"name":"\ud800"}"#;
+        assert_eq!(parse(text).unwrap().editor().render().unwrap(), text);
+        // Keys differing only in lone surrogates collide after decoding: refused, not guessed.
+        assert!(matches!(
+            kind_of(r#"{"\ud800":1,"\udbff":2}"#),
+            ParseErrorKind::DuplicateKey { .. }
+        ));
+    }
+
+    #[test]
+    fn bom_is_skipped_and_not_written() {
+        let text = "\u{feff}{\"a\": 1}";
+        let doc = parse(text).unwrap();
+        assert!(doc.had_bom());
+        assert_eq!(doc.root().span, 3..text.len());
+        assert_eq!(doc.editor().render().unwrap(), "{\"a\": 1}");
+        // Only at the very start.
+        assert!(matches!(
+            kind_of(" \u{feff}{}"),
+            ParseErrorKind::Unexpected { .. }
+        ));
+    }
+
+    #[test]
+    fn replace_values() {
+        let out = edited("{ \"a\" : [1, 2.0 ,3], \"b\":{\"c\":\"x\"} }", |doc, ed| {
+            let root = doc.root();
+            ed.replace(root.get("a").unwrap().index(1).unwrap(), "2.5")
+                .unwrap();
+            ed.replace(root.get("b").unwrap(), "null").unwrap();
+        });
+        assert_eq!(out, "{ \"a\" : [1, 2.5 ,3], \"b\":null }");
+    }
+
+    #[test]
+    fn insert_members_keeps_layout() {
+        let pretty = "{\n    \"asset\": {\n        \"version\": \"2.0\"\n    },\n    \"x\": 1\n}\n";
+        let out = edited(pretty, |doc, ed| {
+            ed.insert_member(doc.root(), "accessors", "[]").unwrap();
+            ed.insert_member(doc.root(), "k\"ey", "2").unwrap();
+            ed.insert_member(doc.root().get("asset").unwrap(), "generator", "\"tspace\"")
+                .unwrap();
+        });
+        assert_eq!(
+            out,
+            "{\n    \"asset\": {\n        \"version\": \"2.0\",\n        \"generator\": \"tspace\"\n    },\
+             \n    \"x\": 1,\n    \"accessors\": [],\n    \"k\\\"ey\": 2\n}\n"
+        );
+        let compact = edited("{\"a\":1,\"b\":2}", |doc, ed| {
+            ed.insert_member(doc.root(), "c", "3").unwrap();
+        });
+        assert_eq!(compact, "{\"a\":1,\"b\":2,\"c\":3}");
+        for (empty, expected) in [("{}", "{\"a\":1}"), ("{ \n }", "{\"a\":1 \n }")] {
+            let out = edited(empty, |doc, ed| {
+                ed.insert_member(doc.root(), "a", "1").unwrap()
+            });
+            assert_eq!(out, expected);
+        }
+        let doc = parse("{\"a\":1}").unwrap();
+        let mut ed = doc.editor();
+        assert_eq!(
+            ed.insert_member(doc.root(), "a", "2"),
+            Err(EditError::MemberExists { key: "a".into() })
+        );
+        assert!(matches!(
+            ed.insert_member(doc.root().get("a").unwrap(), "b", "2"),
+            Err(EditError::NotAnObject { .. })
+        ));
+        assert!(matches!(
+            ed.insert_member(doc.root(), "b", "1,2"),
+            Err(EditError::InvalidText { .. })
+        ));
+        assert!(matches!(
+            ed.replace(doc.root(), "nan"),
+            Err(EditError::InvalidText { .. })
+        ));
+    }
+
+    #[test]
+    fn set_member_replaces_or_adds() {
+        let out = edited("{\"a\":1}", |doc, ed| {
+            ed.set_member(doc.root(), "a", "10").unwrap();
+            ed.set_member(doc.root(), "b", "20").unwrap();
+            ed.set_member(doc.root(), "b", "21").unwrap();
+        });
+        assert_eq!(out, "{\"a\":10,\"b\":21}");
+    }
+
+    #[test]
+    fn append_elements() {
+        let cases = [
+            ("[]", "[7,8]"),
+            ("[ ]", "[7,8 ]"),
+            ("[1]", "[1,7,8]"),
+            ("[\n  1\n]", "[\n  1,\n  7,\n  8\n]"),
+            ("[1, 2]", "[1, 2, 7, 8]"),
+            ("[1,\n\t2 ]", "[1,\n\t2,\n\t7,\n\t8 ]"),
+        ];
+        for (input, expected) in cases {
+            let out = edited(input, |doc, ed| {
+                let n = doc.root().as_array().unwrap().len();
+                assert_eq!(ed.append_element(doc.root(), "7").unwrap(), n);
+                assert_eq!(ed.append_element(doc.root(), "8").unwrap(), n + 1);
+            });
+            assert_eq!(out, expected, "{input:?}");
+        }
+        let doc = parse("{}").unwrap();
+        assert!(matches!(
+            doc.editor().append_element(doc.root(), "1"),
+            Err(EditError::NotAnArray { .. })
+        ));
+    }
+
+    #[test]
+    fn push_to_array_member_creates_or_extends() {
+        let out = edited("{\"accessors\":[{}], \"x\":1}", |doc, ed| {
+            assert_eq!(
+                ed.push_to_array_member(doc.root(), "accessors", "{\"a\":1}")
+                    .unwrap(),
+                1
+            );
+            assert_eq!(
+                ed.push_to_array_member(doc.root(), "bufferViews", "{}")
+                    .unwrap(),
+                0
+            );
+            assert_eq!(
+                ed.push_to_array_member(doc.root(), "bufferViews", "{}")
+                    .unwrap(),
+                1
+            );
+            assert!(matches!(
+                ed.push_to_array_member(doc.root(), "x", "1"),
+                Err(EditError::NotAnArray { .. })
+            ));
+        });
+        assert_eq!(
+            out,
+            "{\"accessors\":[{},{\"a\":1}], \"x\":1, \"bufferViews\":[{},{}]}"
+        );
+    }
+
+    #[test]
+    fn remove_members() {
+        let cases: &[(&str, &[&str], &str)] = &[
+            ("{\"a\":1, \"b\":2, \"c\":3}", &["b"], "{\"a\":1, \"c\":3}"),
+            ("{\"a\":1, \"b\":2, \"c\":3}", &["a"], "{\"b\":2, \"c\":3}"),
+            ("{\"a\":1, \"b\":2, \"c\":3}", &["c"], "{\"a\":1, \"b\":2}"),
+            ("{\"a\":1, \"b\":2, \"c\":3}", &["a", "b"], "{\"c\":3}"),
+            ("{\"a\":1, \"b\":2, \"c\":3}", &["b", "c"], "{\"a\":1}"),
+            ("{\"a\":1, \"b\":2, \"c\":3}", &["a", "c"], "{\"b\":2}"),
+            ("{\"a\":1, \"b\":2, \"c\":3}", &["a", "b", "c"], "{}"),
+            ("{ \"a\" : 1 }", &["a"], "{  }"),
+            ("{\n  \"a\": 1,\n  \"b\": 2\n}", &["a"], "{\n  \"b\": 2\n}"),
+        ];
+        for &(input, keys, expected) in cases {
+            let out = edited(input, |doc, ed| {
+                for key in keys {
+                    assert!(ed.remove_member(doc.root(), key).unwrap());
+                }
+                assert!(!ed.remove_member(doc.root(), "zz").unwrap());
+            });
+            assert_eq!(out, expected, "{input:?} without {keys:?}");
+        }
+    }
+
+    #[test]
+    fn remove_then_add() {
+        let out = edited("{\"a\":1, \"b\":2}", |doc, ed| {
+            ed.remove_member(doc.root(), "a").unwrap();
+            ed.remove_member(doc.root(), "b").unwrap();
+            ed.insert_member(doc.root(), "b", "3").unwrap();
+            ed.insert_member(doc.root(), "c", "4").unwrap();
+        });
+        assert_eq!(out, "{\"b\":3, \"c\":4}");
+        let out = edited("{\"a\":1, \"b\":2}", |doc, ed| {
+            ed.remove_member(doc.root(), "b").unwrap();
+            ed.set_member(doc.root(), "b", "5").unwrap();
+            ed.replace(doc.root().get("a").unwrap(), "0").unwrap();
+        });
+        assert_eq!(out, "{\"a\":0, \"b\":5}");
+        let out = edited("{\"a\":1}", |doc, ed| {
+            ed.insert_member(doc.root(), "b", "2").unwrap();
+            assert!(ed.remove_member(doc.root(), "b").unwrap());
+        });
+        assert_eq!(out, "{\"a\":1}");
+    }
+
+    #[test]
+    fn overlapping_edits_are_refused() {
+        let doc = parse("{\"a\":{\"b\":[1]}}").unwrap();
+        let root = doc.root();
+        let a = root.get("a").unwrap();
+        let mut ed = doc.editor();
+        ed.replace(a, "0").unwrap();
+        ed.append_element(a.get("b").unwrap(), "2").unwrap();
+        assert!(matches!(ed.render(), Err(EditError::Overlap { .. })));
+
+        let mut ed = doc.editor();
+        ed.replace(a.get("b").unwrap(), "0").unwrap();
+        ed.remove_member(a, "b").unwrap();
+        assert!(matches!(ed.render(), Err(EditError::Overlap { .. })));
+
+        let mut ed = doc.editor();
+        ed.replace(root, "1").unwrap();
+        ed.replace(root, "2").unwrap();
+        let err = ed.render().unwrap_err();
+        assert!(err.to_string().contains("overlap"), "{err}");
+    }
+
+    #[test]
+    fn foreign_nodes_are_caught() {
+        let doc = parse("[1]").unwrap();
+        let other = parse("[1, 2, 3, 4, 5]").unwrap();
+        let mut ed = doc.editor();
+        assert!(matches!(
+            ed.replace(other.root(), "0"),
+            Err(EditError::ForeignNode { .. })
+        ));
+        assert!(matches!(
+            ed.append_element(other.root(), "0"),
+            Err(EditError::ForeignNode { .. })
+        ));
+    }
+
+    #[test]
+    fn escaping() {
+        let tricky = "a\"b\\c\n\r\t\u{1}\u{1f}é😀/";
+        let lit = escape_str(tricky);
+        assert_eq!(lit, "\"a\\\"b\\\\c\\n\\r\\t\\u0001\\u001fé😀/\"");
+        assert_eq!(parse(&lit).unwrap().root().as_str(), Some(tricky));
+    }
+
+    #[test]
+    fn f32_text_round_trips() {
+        assert_eq!(f32_text(1.0).as_deref(), Some("1"));
+        assert_eq!(f32_text(-0.0).as_deref(), Some("-0"));
+        assert_eq!(f32_text(0.1).as_deref(), Some("0.1"));
+        assert_eq!(f32_text(f32::NAN), None);
+        assert_eq!(f32_text(f32::NEG_INFINITY), None);
+        let specials = [
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            f32::EPSILON,
+            1e-45,
+            -1e-45,
+            1e-5,
+            9.99999e-6,
+            1e16,
+            9.999999e15,
+            16777217.0,
+            0.3,
+        ];
+        let mut state = 0x9E37_79B9_u32;
+        let randoms = (0..200_000).map(|_| {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            f32::from_bits(state)
+        });
+        for v in specials
+            .into_iter()
+            .chain(randoms)
+            .filter(|v| v.is_finite())
+        {
+            let text = f32_text(v).unwrap();
+            let doc = parse(&text).unwrap_or_else(|e| panic!("{text}: {e}"));
+            let n = doc.root().as_number().unwrap();
+            assert_eq!(
+                n.raw().parse::<f32>().unwrap().to_bits(),
+                v.to_bits(),
+                "{text}"
+            );
+            // Readers that go through f64 first (JavaScript, serde_json) must agree too.
+            assert_eq!(
+                (n.as_f64().unwrap() as f32).to_bits(),
+                v.to_bits(),
+                "{text}"
+            );
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
+            if let Ok(doc) = Document::parse(&bytes) {
+                let out = doc.editor().render().unwrap();
+                prop_assert_eq!(out.as_bytes(), bytes.strip_prefix(BOM).unwrap_or(&bytes));
+            }
+        }
+
+        #[test]
+        fn json_like_text_never_panics(
+            parts in proptest::collection::vec(
+                prop::sample::select(vec![
+                    "{", "}", "[", "]", ",", ":", " ", "\n", "\"a\"", "\"b\"", "\"\\u", "d800",
+                    "\\", "1", "-", "0", ".", "e", "true", "null", "\"", "\u{feff}", "é",
+                ]),
+                0..64,
+            )
+        ) {
+            let text: String = parts.concat();
+            if let Ok(doc) = Document::parse(text.as_bytes()) {
+                let mut ed = doc.editor();
+                // Exercise every edit on whatever the root turned out to be.
+                let root = doc.root();
+                let _ = ed.insert_member(root, "new", "1");
+                let _ = ed.push_to_array_member(root, "list", "2");
+                let _ = ed.remove_member(root, "a");
+                let _ = ed.append_element(root, "3");
+                if let Some(first) = root.index(0) {
+                    let _ = ed.replace(first, "4");
+                }
+                if let Ok(out) = ed.render() {
+                    prop_assert!(Document::parse(out.as_bytes()).is_ok(), "{:?} -> {:?}", text, out);
+                }
+            }
+        }
+    }
+}
