@@ -1,4 +1,5 @@
 //! glTF 2.0: the GLB container, the accessor decoder, and the lossless JSON reader and splice
 //! editor that lets output keep every byte of the input it did not change.
 
+pub mod glb;
 pub mod json;
