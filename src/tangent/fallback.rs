@@ -35,8 +35,8 @@ pub(crate) fn effective_normal(mesh: &Mesh<'_>, corner: usize) -> [f32; 3] {
     face_normal(mesh.positions[a], mesh.positions[b], mesh.positions[c]).unwrap_or([0.0, 0.0, 1.0])
 }
 
-#[derive(Clone, Copy, PartialEq)]
-enum Problem {
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Problem {
     Unassigned,
     ZeroLength,
     NonFinite,
@@ -61,14 +61,24 @@ fn check(tangent: &[f32; 4], normal: [f32; 3]) -> Option<Problem> {
     None
 }
 
-/// The common case, decided without normalizing anything: a unit input normal (within 1e-6,
-/// so the orthogonality test against it stands for the test against its normalization) and a
-/// tangent that passes.
+/// A normal close enough to unit length (within 1e-6) that the orthogonality test against it
+/// stands for the test against its normalization.
+#[inline]
+pub(crate) fn is_nearly_unit(n: [f32; 3]) -> bool {
+    (dot(n, n) - 1.0).abs() < 1e-6
+}
+
+/// The common case, decided without normalizing anything: a tangent that passes against a normal
+/// for which [`is_nearly_unit`] holds.
+#[inline]
+pub(crate) fn passes(tangent: &[f32; 4], nearly_unit_normal: [f32; 3]) -> bool {
+    check(tangent, nearly_unit_normal).is_none()
+}
+
 #[inline]
 fn obviously_valid(mesh: &Mesh<'_>, corner: usize, tangent: &[f32; 4]) -> bool {
     let n = mesh.normals[mesh.indices[corner] as usize];
-    let n2 = dot(n, n);
-    (n2 - 1.0).abs() < 1e-6 && check(tangent, n).is_none()
+    is_nearly_unit(n) && passes(tangent, n)
 }
 
 /// Projects `v` into the plane of the unit `normal` and normalizes it, if enough is left.
@@ -103,7 +113,12 @@ fn triangle_tangent(mesh: &Mesh<'_>, triangle: usize) -> ([f32; 3], f32) {
     (scale(s, sign), det)
 }
 
-fn repair_corner(mesh: &Mesh<'_>, corner: usize, tangent: &mut [f32; 4]) -> Option<Problem> {
+/// Replaces the tangent of `corner` if it is invalid, and says why it was.
+pub(crate) fn repair_corner(
+    mesh: &Mesh<'_>,
+    corner: usize,
+    tangent: &mut [f32; 4],
+) -> Option<Problem> {
     if obviously_valid(mesh, corner, tangent) {
         return None;
     }
@@ -139,13 +154,7 @@ pub(crate) fn repair(mesh: &Mesh<'_>, corners: &mut [[f32; 4]], parallel: bool) 
         for (k, tangent) in chunk.iter_mut().enumerate() {
             let corner = chunk_index * CHUNK + k;
             if let Some(problem) = repair_corner(mesh, corner, tangent) {
-                counts.corners.add(corner as u32);
-                match problem {
-                    Problem::Unassigned => counts.unassigned += 1,
-                    Problem::ZeroLength => counts.zero_length += 1,
-                    Problem::NonFinite => counts.non_finite += 1,
-                    Problem::NotOrthogonal => counts.not_orthogonal += 1,
-                }
+                counts.add(corner as u32, problem);
             }
         }
         counts
@@ -165,4 +174,26 @@ pub(crate) fn repair(mesh: &Mesh<'_>, corners: &mut [[f32; 4]], parallel: bool) 
             all.not_orthogonal += part.not_orthogonal;
             all
         })
+}
+
+impl FallbackCounts {
+    pub(crate) fn add(&mut self, corner: u32, problem: Problem) {
+        self.corners.add(corner);
+        match problem {
+            Problem::Unassigned => self.unassigned += 1,
+            Problem::ZeroLength => self.zero_length += 1,
+            Problem::NonFinite => self.non_finite += 1,
+            Problem::NotOrthogonal => self.not_orthogonal += 1,
+        }
+    }
+
+    /// Counts repairs recorded in any order (as parallel workers record them).
+    pub(crate) fn from_unordered(mut repairs: Vec<(u32, Problem)>) -> FallbackCounts {
+        repairs.sort_unstable_by_key(|&(corner, _)| corner);
+        let mut counts = FallbackCounts::default();
+        for (corner, problem) in repairs {
+            counts.add(corner, problem);
+        }
+        counts
+    }
 }

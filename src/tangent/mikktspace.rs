@@ -32,12 +32,17 @@
 //!   welded vertex unsorted, which can leave a few triangles there unpaired. We pair them all,
 //!   as `bevy_mikktspace`'s `corrected-edge-sorting` feature does.
 
+use super::acos::acos_slice;
+use super::diagnostics::FallbackCounts;
+use super::fallback::{self, Problem};
 use super::math::{
-    Mesh, UNASSIGNED, add, dot, encode, is_finite3, normalize_or_zero, not_zero, reject,
+    Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero, not_zero, reject,
     same_position, scale, sub,
 };
+use super::output::SharedCorners;
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 const DEGENERATE: u8 = 1;
 const GROUP_WITH_ANY: u8 = 2;
@@ -53,7 +58,13 @@ struct Frame {
     t: [f32; 3],
 }
 
-pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<[f32; 4]> {
+/// Per-corner tangents, final: repaired where the reference's would be invalid (counted in the
+/// returned [`FallbackCounts`]) and with `w` negated when `flip_w` is set.
+pub(crate) fn generate(
+    mesh: &Mesh<'_>,
+    parallel: bool,
+    flip_w: bool,
+) -> (Vec<[f32; 4]>, FallbackCounts) {
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh);
 
@@ -76,6 +87,7 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<[f32; 4]> {
             .enumerate()
             .for_each(classify);
     }
+    let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
     let class_of = |&v: &u32| weld.class_of_vertex[v as usize];
@@ -100,75 +112,79 @@ pub(crate) fn generate(mesh: &Mesh<'_>, parallel: bool) -> Vec<[f32; 4]> {
         corner_class: &corner_class,
         frames: &frames,
         table: &table,
+        flip_w,
     };
-
-    // Results are laid out like `table.corners`, so that each vertex owns a contiguous slice.
-    let mut results = vec![UNASSIGNED; table.corners.len()];
-    let pieces = if parallel {
-        rayon::current_num_threads() * 16
+    let corner_count = mesh.indices.len();
+    // Degenerate corners copy the raw result of their vertex's first listed corner.
+    let first_raw = if has_degenerate {
+        (0..weld.class_count)
+            .map(|_| [const { AtomicU32::new(0) }; 4])
+            .collect()
     } else {
-        1
+        Vec::new()
     };
-    let touched_lists: Vec<Vec<u32>> = {
-        let pieces = table.split_by_class(&mut results, pieces);
-        let run = |(range, out): (std::ops::Range<usize>, &mut [[f32; 4]])| {
-            let mut scratch = Scratch::default();
-            let mut touched = Vec::new();
-            let base = table.offsets[range.start] as usize;
-            for class in range {
-                let corners = table.of(class);
-                if corners
-                    .iter()
-                    .any(|&c| flags[c as usize / 3] & GROUP_WITH_ANY != 0)
-                {
-                    touched.push(class as u32);
-                    continue;
-                }
-                let start = table.offsets[class] as usize - base;
-                let out = &mut out[start..start + corners.len()];
-                context.pair_edges(class, &mut scratch);
-                label_components(corners, &flags, &mut scratch);
-                context.evaluate(class, &flags, &scratch.labels, out, &mut scratch.eval);
-            }
-            touched
-        };
-        if parallel {
-            pieces.into_par_iter().map(run).collect()
-        } else {
-            pieces.into_iter().map(run).collect()
+    let first_raw = FirstRaw(first_raw);
+
+    let (out, mut repairs) = if parallel {
+        let shared = SharedCorners::new(corner_count);
+        let pieces = table.chunks(rayon::current_num_threads() * 16);
+        let parts: Vec<Piece> = pieces
+            .into_par_iter()
+            .map(|range| {
+                let mut put = |c: usize, t: [f32; 4]| shared.put(c, t);
+                context.process_classes(range, &flags, &first_raw, &mut put)
+            })
+            .collect();
+        let mut repairs = Vec::new();
+        let mut touched = Vec::new();
+        for part in parts {
+            repairs.extend(part.repairs);
+            touched.extend(part.touched);
         }
+        let mut put = |c: usize, t: [f32; 4]| shared.put(c, t);
+        context.group_touched_vertices(&touched, &mut flags, &first_raw, &mut repairs, &mut put);
+        context.finish_degenerate(&flags, &first_raw, &mut repairs, &mut put);
+        (shared.into_vec(), repairs)
+    } else {
+        let mut out = vec![[0.0f32; 4]; corner_count];
+        let mut put = |c: usize, t: [f32; 4]| out[c] = t;
+        let Piece {
+            mut repairs,
+            touched,
+        } = context.process_classes(0..weld.class_count, &flags, &first_raw, &mut put);
+        context.group_touched_vertices(&touched, &mut flags, &first_raw, &mut repairs, &mut put);
+        context.finish_degenerate(&flags, &first_raw, &mut repairs, &mut put);
+        (out, repairs)
     };
-    let touched: Vec<u32> = touched_lists.into_iter().flatten().collect();
-    if !touched.is_empty() {
-        context.group_touched_vertices(&touched, &mut flags, &mut results);
+    repairs.shrink_to_fit();
+    (out, FallbackCounts::from_unordered(repairs))
+}
+
+/// The raw (method) result of the first listed corner of every vertex, kept only when some
+/// degenerate triangle needs to copy it.
+struct FirstRaw(Vec<[AtomicU32; 4]>);
+
+impl FirstRaw {
+    fn set(&self, class: usize, raw: [f32; 4]) {
+        if let Some(place) = self.0.get(class) {
+            for (lane, value) in place.iter().zip(raw) {
+                lane.store(value.to_bits(), Ordering::Relaxed);
+            }
+        }
     }
 
-    // Gather per corner. Degenerate corners borrow from the first good corner of their vertex.
-    let slot_of_corner = &table.slot_of_corner;
-    let gather = |(c, out): (usize, &mut [f32; 4])| {
-        let slot = slot_of_corner[c];
-        *out = if slot != NONE {
-            results[slot as usize]
-        } else {
-            let class = corner_class[c];
-            let first = table.offsets[class as usize];
-            if first < table.offsets[class as usize + 1] {
-                results[first as usize]
-            } else {
-                UNASSIGNED
-            }
-        };
-    };
-    let mut out = vec![UNASSIGNED; corner_class.len()];
-    if parallel {
-        out.par_iter_mut()
-            .enumerate()
-            .with_min_len(8192)
-            .for_each(gather);
-    } else {
-        out.iter_mut().enumerate().for_each(gather);
+    fn get(&self, class: usize) -> [f32; 4] {
+        self.0[class]
+            .each_ref()
+            .map(|lane| f32::from_bits(lane.load(Ordering::Relaxed)))
     }
-    out
+}
+
+/// What one worker hands back besides the tangents it wrote.
+struct Piece {
+    repairs: Vec<(u32, Problem)>,
+    /// Vertices left for the sequential pass (they touch "group with anything" triangles).
+    touched: Vec<u32>,
 }
 
 /// The reference's per-triangle set-up, in its operation order so results are bit-identical.
@@ -222,6 +238,7 @@ struct Context<'a> {
     corner_class: &'a [u32],
     frames: &'a [Frame],
     table: &'a CornerTable,
+    flip_w: bool,
 }
 
 /// Per-vertex working memory, reused from vertex to vertex.
@@ -246,6 +263,240 @@ struct HalfEdge {
 }
 
 impl Context<'_> {
+    /// Groups and evaluates the vertices `classes`, except those touching "group with anything"
+    /// triangles, which are handed back for the sequential pass.
+    fn process_classes<P: FnMut(usize, [f32; 4])>(
+        &self,
+        classes: std::ops::Range<usize>,
+        flags: &[u8],
+        first_raw: &FirstRaw,
+        put: &mut P,
+    ) -> Piece {
+        let mut scratch = Scratch::default();
+        let mut piece = Piece {
+            repairs: Vec::new(),
+            touched: Vec::new(),
+        };
+        let mut batch = Batch::default();
+        let mut start = classes.start;
+        while start < classes.end {
+            // A run of vertices with about BATCH_CORNERS corners between them.
+            let first_slot = self.table.offsets[start] as usize;
+            let mut end = start + 1;
+            while end < classes.end
+                && self.table.offsets[end + 1] as usize - first_slot <= BATCH_CORNERS
+            {
+                end += 1;
+            }
+            batch.compute(self, start..end);
+            for class in start..end {
+                let corners = self.table.of(class);
+                if corners
+                    .iter()
+                    .any(|&c| flags[c as usize / 3] & GROUP_WITH_ANY != 0)
+                {
+                    piece.touched.push(class as u32);
+                    continue;
+                }
+                let offset = self.table.offsets[class] as usize - first_slot;
+                if self.try_one_group(
+                    class,
+                    flags,
+                    &batch,
+                    offset,
+                    first_raw,
+                    &mut piece.repairs,
+                    put,
+                ) {
+                    continue;
+                }
+                self.pair_edges(class, &mut scratch);
+                label_components(corners, flags, &mut scratch);
+                self.evaluate(
+                    class,
+                    flags,
+                    &scratch.labels,
+                    &batch,
+                    offset,
+                    &mut scratch.eval,
+                );
+                self.finish_class(class, &scratch.eval.raw, first_raw, &mut piece.repairs, put);
+            }
+            start = end;
+        }
+        piece
+    }
+
+    /// The common vertex, without the general machinery: its triangles share one orientation,
+    /// every edge around it pairs unambiguously (no other vertex is reached twice the same way),
+    /// the pairs connect all its corners into one group, and no two frames can be opposite.
+    /// Then the general path would find one group summed in ascending order, which is what is
+    /// computed here. Returns false, having written nothing, for any other vertex.
+    #[allow(clippy::too_many_arguments)]
+    fn try_one_group<P: FnMut(usize, [f32; 4])>(
+        &self,
+        class: usize,
+        flags: &[u8],
+        batch: &Batch,
+        offset: usize,
+        first_raw: &FirstRaw,
+        repairs: &mut Vec<(u32, Problem)>,
+        put: &mut P,
+    ) -> bool {
+        const MAX: usize = 32;
+        let corners = self.table.of(class);
+        let k = corners.len();
+        if k == 0 || k > MAX {
+            return false;
+        }
+        let orientation = flags[corners[0] as usize / 3] & ORIENT_PRESERVING;
+        // The other ends of the edges arriving at (`[0]`) and leaving (`[1]`) each corner.
+        let mut ends = [[0u32; 2]; MAX];
+        for (end, &corner) in ends.iter_mut().zip(corners) {
+            let corner = corner as usize;
+            let flag = flags[corner / 3];
+            if flag & GROUP_WITH_ANY != 0 || flag & ORIENT_PRESERVING != orientation {
+                return false;
+            }
+            let base = corner - corner % 3;
+            let i = corner - base;
+            *end = [
+                self.corner_class[base + PREV[i]],
+                self.corner_class[base + NEXT[i]],
+            ];
+        }
+        // Pair each leaving edge with the arriving edge from the same vertex; more than one
+        // candidate on either side is the ambiguous case the general path resolves.
+        let mut adjacent = [0u32; MAX];
+        let mut arriving_pairs = [0u8; MAX];
+        for j in 0..k {
+            let mut leaving_pairs = 0;
+            for i in 0..k {
+                if ends[j][1] == ends[i][0] {
+                    leaving_pairs += 1;
+                    arriving_pairs[i] += 1;
+                    adjacent[j] |= 1 << i;
+                    adjacent[i] |= 1 << j;
+                }
+            }
+            if leaving_pairs > 1 {
+                return false;
+            }
+        }
+        if arriving_pairs[..k].iter().any(|&n| n > 1) {
+            return false;
+        }
+        let all = if k == MAX { u32::MAX } else { (1u32 << k) - 1 };
+        let mut reached = 1u32;
+        loop {
+            let mut grown = reached;
+            let mut rest = reached;
+            while rest != 0 {
+                grown |= adjacent[rest.trailing_zeros() as usize];
+                rest &= rest - 1;
+            }
+            if grown == reached {
+                break;
+            }
+            reached = grown;
+        }
+        if reached != all {
+            return false;
+        }
+
+        // One sub-group unless two frames can be opposite (see `evaluate_group`).
+        let slots = offset..offset + k;
+        let column = |c: &[Vec<f32>; 3], j: usize| [c[0][j], c[1][j], c[2][j]];
+        let (rs, rt) = (column(&batch.s, offset), column(&batch.t, offset));
+        let rt2 = dot(rt, rt);
+        for j in slots.clone() {
+            let (s, t) = (column(&batch.s, j), column(&batch.t, j));
+            let d = dot(t, rt);
+            if !(dot(s, rs) > 0.01 && d > 0.0 && d * d > 1e-4 * (dot(t, t) * rt2)) {
+                return false;
+            }
+        }
+        let mut sum = [0.0f32; 3];
+        for j in slots {
+            sum = add(sum, scale(column(&batch.s, j), batch.angle[j]));
+        }
+        let raw = encode(normalize_or_zero(sum), orientation != 0);
+        first_raw.set(class, raw);
+        let normal = column(&batch.normal, offset);
+        let valid = fallback::is_nearly_unit(normal) && fallback::passes(&raw, normal);
+        for &corner in corners {
+            self.finish_corner(corner as usize, raw, valid, repairs, put);
+        }
+        true
+    }
+
+    /// Validates, repairs where needed, converts `w` and writes the corners of one vertex.
+    fn finish_class<P: FnMut(usize, [f32; 4])>(
+        &self,
+        class: usize,
+        raw: &[[f32; 4]],
+        first_raw: &FirstRaw,
+        repairs: &mut Vec<(u32, Problem)>,
+        put: &mut P,
+    ) {
+        let corners = self.table.of(class);
+        let Some(&first) = corners.first() else {
+            return;
+        };
+        first_raw.set(class, raw[0]);
+        let normal = self.mesh.normals[self.mesh.indices[first as usize] as usize];
+        let normal_ok = fallback::is_nearly_unit(normal);
+        for (&corner, &tangent) in corners.iter().zip(raw) {
+            let ok = normal_ok && fallback::passes(&tangent, normal);
+            self.finish_corner(corner as usize, tangent, ok, repairs, put);
+        }
+    }
+
+    #[inline]
+    fn finish_corner<P: FnMut(usize, [f32; 4])>(
+        &self,
+        corner: usize,
+        mut tangent: [f32; 4],
+        known_valid: bool,
+        repairs: &mut Vec<(u32, Problem)>,
+        put: &mut P,
+    ) {
+        if !known_valid {
+            if let Some(problem) = fallback::repair_corner(self.mesh, corner, &mut tangent) {
+                repairs.push((corner as u32, problem));
+            }
+        }
+        if self.flip_w {
+            tangent[3] = -tangent[3];
+        }
+        put(corner, tangent);
+    }
+
+    /// Degenerate triangles (two corners at one position) take the result of the first listed
+    /// corner of their vertex, as the reference does.
+    fn finish_degenerate<P: FnMut(usize, [f32; 4])>(
+        &self,
+        flags: &[u8],
+        first_raw: &FirstRaw,
+        repairs: &mut Vec<(u32, Problem)>,
+        put: &mut P,
+    ) {
+        for (triangle, &flag) in flags.iter().enumerate() {
+            if flag & DEGENERATE == 0 {
+                continue;
+            }
+            for corner in 3 * triangle..3 * triangle + 3 {
+                let class = self.corner_class[corner];
+                let raw = if class != NONE && !self.table.of(class as usize).is_empty() {
+                    first_raw.get(class as usize)
+                } else {
+                    UNASSIGNED
+                };
+                self.finish_corner(corner, raw, false, repairs, put);
+            }
+        }
+    }
+
     /// Pairs the triangles around `class` across the edges they share, as the reference does:
     /// the edges with the same two (welded) ends are taken in triangle order, and each edge not
     /// yet paired takes the first later edge running the opposite way that is not paired either.
@@ -316,8 +567,19 @@ impl Context<'_> {
 
     /// Groups the vertices that touch "group with anything" triangles, in the reference's order:
     /// seeds by ascending corner, each group walked depth first, incoming edge before outgoing.
-    fn group_touched_vertices(&self, touched: &[u32], flags: &mut [u8], results: &mut [[f32; 4]]) {
+    fn group_touched_vertices<P: FnMut(usize, [f32; 4])>(
+        &self,
+        touched: &[u32],
+        flags: &mut [u8],
+        first_raw: &FirstRaw,
+        repairs: &mut Vec<(u32, Problem)>,
+        put: &mut P,
+    ) {
+        if touched.is_empty() {
+            return;
+        }
         let mut scratch = Scratch::default();
+        let mut batch = Batch::default();
         // Links and labels of every touched vertex, laid out one vertex after another.
         let mut link_offsets = Vec::with_capacity(touched.len() + 1);
         let mut links: Vec<[u32; 2]> = Vec::new();
@@ -374,45 +636,33 @@ impl Context<'_> {
         }
         for (k, &class) in touched.iter().enumerate() {
             let class = class as usize;
-            let range = self.table.offsets[class] as usize..self.table.offsets[class + 1] as usize;
             let labels = &labels[link_offsets[k]..link_offsets[k + 1]];
-            self.evaluate(class, flags, labels, &mut results[range], &mut scratch.eval);
+            batch.compute(self, class..class + 1);
+            self.evaluate(class, flags, labels, &batch, 0, &mut scratch.eval);
+            self.finish_class(class, &scratch.eval.raw, first_raw, repairs, put);
         }
     }
 
-    /// Computes the tangent of every corner around `class` from its group label (`NONE`: no
-    /// group, the corner stays unassigned).
+    /// Computes the raw tangent of every corner around `class` into `eval.raw`, from its group
+    /// label (`NONE`: no group, the corner stays unassigned).
+    /// The members of the vertex start at `offset` in `batch`.
     fn evaluate(
         &self,
         class: usize,
         flags: &[u8],
         labels: &[u32],
-        out: &mut [[f32; 4]],
+        batch: &Batch,
+        offset: usize,
         eval: &mut EvalScratch,
     ) {
         let corners = self.table.of(class);
-        let Some(&first) = corners.first() else {
-            return;
-        };
-        let normal = self.mesh.normals[self.mesh.indices[first as usize] as usize];
-
-        // Per-corner contribution, computed once.
+        eval.raw.clear();
+        eval.raw.resize(corners.len(), UNASSIGNED);
+        // Per-corner contributions, computed for the whole batch beforehand.
         eval.members.clear();
-        for &corner in corners {
-            let corner = corner as usize;
-            let triangle = corner / 3;
-            let any = flags[triangle] & GROUP_WITH_ANY != 0;
-            let mut member = Member {
-                any,
-                ..Member::default()
-            };
-            if !any {
-                let frame = &self.frames[triangle];
-                member.s = normalize_or_zero(reject(frame.s, normal));
-                member.t = normalize_or_zero(reject(frame.t, normal));
-                member.angle = self.corner_angle(corner, normal);
-            }
-            eval.members.push(member);
+        for (j, &corner) in corners.iter().enumerate() {
+            let any = flags[corner as usize / 3] & GROUP_WITH_ANY != 0;
+            eval.members.push(batch.member(offset + j, any));
         }
 
         // Corners in group order: by label, then ascending (which is ascending triangle order,
@@ -442,7 +692,7 @@ impl Context<'_> {
             eval.group.extend_from_slice(&eval.order[start..end]);
             let first = corners[eval.group[0] as usize] as usize;
             let orientation_preserving = flags[first / 3] & ORIENT_PRESERVING != 0;
-            self.evaluate_group(corners, orientation_preserving, out, eval);
+            self.evaluate_group(corners, orientation_preserving, eval);
             start = end;
         }
     }
@@ -451,21 +701,26 @@ impl Context<'_> {
         &self,
         corners: &[u32],
         orientation_preserving: bool,
-        out: &mut [[f32; 4]],
         eval: &mut EvalScratch,
     ) {
         let members = &eval.members;
         let group = &eval.group;
+        let out = &mut eval.raw;
         // A member leaves another's sub-group only if their projected frames point in exactly
         // opposite directions (cosine <= -1 in float) or are NaN. If every frame lies within
-        // ~89° of the first, no pair can be opposite and the group is one sub-group.
+        // ~89° of the first, no pair can be opposite and the group is one sub-group. (`t` is
+        // not normalized, so its test compares squares: cos > 0.01 ⇔ d > 0 and d² > 1e-4 |a|²|b|².)
         let reference = group.iter().map(|&j| &members[j as usize]).find(|m| !m.any);
         let single = match reference {
             None => true,
-            Some(r) => group
-                .iter()
-                .map(|&j| &members[j as usize])
-                .all(|m| m.any || (dot(m.s, r.s) > 0.01 && dot(m.t, r.t) > 0.01)),
+            Some(r) => {
+                let rt2 = dot(r.t, r.t);
+                group.iter().map(|&j| &members[j as usize]).all(|m| {
+                    let d = dot(m.t, r.t);
+                    m.any
+                        || (dot(m.s, r.s) > 0.01 && d > 0.0 && d * d > 1e-4 * (dot(m.t, m.t) * rt2))
+                })
+            }
         };
         if single || group.len() > MAX_EXACT_SUBGROUP {
             let tangent = sum_tangents(group.iter().map(|&j| &members[j as usize]));
@@ -475,31 +730,21 @@ impl Context<'_> {
             return;
         }
         // The reference's sub-groups: for each member, the members it is "similar" to.
+        let unit_t = |m: &Member| normalize_or_zero(m.t);
         for &a in group {
             let ma = &members[a as usize];
+            let ta = unit_t(ma);
             let subgroup = group.iter().filter(|&&b| {
                 let mb = &members[b as usize];
                 let same_face = corners[a as usize] / 3 == corners[b as usize] / 3;
-                ma.any || mb.any || same_face || (dot(ma.s, mb.s) > -1.0 && dot(ma.t, mb.t) > -1.0)
+                ma.any
+                    || mb.any
+                    || same_face
+                    || (dot(ma.s, mb.s) > -1.0 && dot(ta, unit_t(mb)) > -1.0)
             });
             let tangent = sum_tangents(subgroup.map(|&j| &members[j as usize]));
             out[a as usize] = encode(tangent, orientation_preserving);
         }
-    }
-
-    /// The angle of the triangle at `corner`, measured in the plane of `normal`, as the reference
-    /// weights it.
-    fn corner_angle(&self, corner: usize, normal: [f32; 3]) -> f32 {
-        let base = corner - corner % 3;
-        let i = corner % 3;
-        let idx = self.mesh.indices;
-        let p_next = self.mesh.positions[idx[base + (i + 1) % 3] as usize];
-        let p_here = self.mesh.positions[idx[corner] as usize];
-        let p_prev = self.mesh.positions[idx[base + (i + 2) % 3] as usize];
-        let v1 = normalize_or_zero(reject(sub(p_next, p_here), normal));
-        let v2 = normalize_or_zero(reject(sub(p_prev, p_here), normal));
-        let cos = dot(v1, v2).clamp(-1.0, 1.0);
-        (cos as f64).acos() as f32
     }
 }
 
@@ -509,15 +754,162 @@ const MAX_EXACT_SUBGROUP: usize = 2048;
 
 #[derive(Clone, Copy, Default)]
 struct Member {
+    /// The triangle's dP/du projected into the normal's plane, normalized.
     s: [f32; 3],
+    /// Its dP/dv projected, not normalized (only the sub-group test needs it).
     t: [f32; 3],
+    /// The corner's angle in the normal's plane: the weight.
     angle: f32,
     any: bool,
+}
+
+/// Corner contributions for a run of consecutive vertices, computed together: the inputs are
+/// gathered into columns, so that the arithmetic (three projections, three normalizations and
+/// an arccosine per corner) runs as one vectorizable loop instead of corner by corner.
+#[derive(Default)]
+struct Batch {
+    len: usize,
+    normal: [Vec<f32>; 3],
+    frame_s: [Vec<f32>; 3],
+    frame_t: [Vec<f32>; 3],
+    /// Edges from the corner to the next and to the previous corner of its triangle.
+    to_next: [Vec<f32>; 3],
+    to_prev: [Vec<f32>; 3],
+    s: [Vec<f32>; 3],
+    t: [Vec<f32>; 3],
+    cos: Vec<f32>,
+    angle: Vec<f32>,
+}
+
+/// Above this many corners a batch is closed (a vertex with more corners gets one of its own).
+const BATCH_CORNERS: usize = 512;
+
+impl Batch {
+    fn columns_mut(&mut self) -> impl Iterator<Item = &mut Vec<f32>> {
+        let Batch {
+            normal,
+            frame_s,
+            frame_t,
+            to_next,
+            to_prev,
+            s,
+            t,
+            cos,
+            angle,
+            ..
+        } = self;
+        normal
+            .iter_mut()
+            .chain(frame_s)
+            .chain(frame_t)
+            .chain(to_next)
+            .chain(to_prev)
+            .chain(s)
+            .chain(t)
+            .chain([cos, angle])
+    }
+
+    /// Gathers and computes the corners of `classes`, in table order.
+    fn compute(&mut self, context: &Context<'_>, classes: std::ops::Range<usize>) {
+        let table = context.table;
+        let mesh = context.mesh;
+        let slots = table.offsets[classes.start] as usize..table.offsets[classes.end] as usize;
+        let len = slots.len();
+        self.len = len;
+        for column in self.columns_mut() {
+            column.clear();
+            column.resize(len, 0.0);
+        }
+        let mut at = 0;
+        for class in classes {
+            let corners = table.of(class);
+            let Some(&first) = corners.first() else {
+                continue;
+            };
+            let normal = mesh.normals[mesh.indices[first as usize] as usize];
+            for &corner in corners {
+                let corner = corner as usize;
+                let triangle = corner / 3;
+                let base = triangle * 3;
+                let i = corner - base;
+                let here = mesh.positions[mesh.indices[corner] as usize];
+                let next = mesh.positions[mesh.indices[base + NEXT[i]] as usize];
+                let prev = mesh.positions[mesh.indices[base + PREV[i]] as usize];
+                let frame = &context.frames[triangle];
+                for k in 0..3 {
+                    self.normal[k][at] = normal[k];
+                    self.frame_s[k][at] = frame.s[k];
+                    self.frame_t[k][at] = frame.t[k];
+                    self.to_next[k][at] = next[k] - here[k];
+                    self.to_prev[k][at] = prev[k] - here[k];
+                }
+                at += 1;
+            }
+        }
+        self.evaluate_columns();
+    }
+
+    /// The reference's per-corner arithmetic, in its operation order, column by column.
+    fn evaluate_columns(&mut self) {
+        let len = self.len;
+        let n = self.normal.each_ref().map(|c| &c[..len]);
+        let fs = self.frame_s.each_ref().map(|c| &c[..len]);
+        let ft = self.frame_t.each_ref().map(|c| &c[..len]);
+        let e1 = self.to_next.each_ref().map(|c| &c[..len]);
+        let e2 = self.to_prev.each_ref().map(|c| &c[..len]);
+        let [sx, sy, sz] = &mut self.s;
+        let [tx, ty, tz] = &mut self.t;
+        let (sx, sy, sz) = (&mut sx[..len], &mut sy[..len], &mut sz[..len]);
+        let (tx, ty, tz) = (&mut tx[..len], &mut ty[..len], &mut tz[..len]);
+        let cos_column = &mut self.cos[..len];
+        for i in 0..len {
+            let normal = [n[0][i], n[1][i], n[2][i]];
+            let column = |c: [&[f32]; 3]| [c[0][i], c[1][i], c[2][i]];
+            let s = normalize_or_zero_branchless(reject(column(fs), normal));
+            let t = reject(column(ft), normal);
+            let v1 = normalize_or_zero_branchless(reject(column(e1), normal));
+            let v2 = normalize_or_zero_branchless(reject(column(e2), normal));
+            let cos = dot(v1, v2).clamp(-1.0, 1.0);
+            (sx[i], sy[i], sz[i]) = (s[0], s[1], s[2]);
+            (tx[i], ty[i], tz[i]) = (t[0], t[1], t[2]);
+            cos_column[i] = cos;
+        }
+        acos_slice(cos_column, &mut self.angle[..len]);
+    }
+
+    #[inline]
+    fn member(&self, slot: usize, any: bool) -> Member {
+        if any {
+            return Member {
+                any,
+                ..Member::default()
+            };
+        }
+        Member {
+            s: [self.s[0][slot], self.s[1][slot], self.s[2][slot]],
+            t: [self.t[0][slot], self.t[1][slot], self.t[2][slot]],
+            angle: self.angle[slot],
+            any,
+        }
+    }
+}
+
+const NEXT: [usize; 3] = [1, 2, 0];
+const PREV: [usize; 3] = [2, 0, 1];
+
+/// [`normalize_or_zero`] written as a select, so that the loop around it vectorizes.
+#[inline(always)]
+fn normalize_or_zero_branchless(a: [f32; 3]) -> [f32; 3] {
+    let keep = not_zero(a[0]) | not_zero(a[1]) | not_zero(a[2]);
+    let scaled = scale(a, 1.0 / length(a));
+    if keep { scaled } else { a }
 }
 
 #[derive(Default)]
 struct EvalScratch {
     members: Vec<Member>,
+    /// The result of every corner around the vertex, before validation.
+    raw: Vec<[f32; 4]>,
     order: Vec<u32>,
     group: Vec<u32>,
 }

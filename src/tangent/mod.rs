@@ -16,6 +16,7 @@
 //! tangent the corner gets a documented fallback (see [`fallback`]) and is counted in
 //! [`Diagnostics::fallback_tangents`].
 
+mod acos;
 mod axis;
 pub mod diagnostics;
 mod fallback;
@@ -23,6 +24,7 @@ mod fast;
 mod math;
 mod mikktspace;
 mod normals;
+mod output;
 mod split;
 mod weld;
 
@@ -247,20 +249,28 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     };
 
     let mut diagnostics = diagnostics::analyze(&mesh, options);
-    let mut corners = match options.method {
-        Method::MikkTSpace => mikktspace::generate(&mesh, options.parallel),
-        Method::Fast => fast::generate(&mesh, options.weighting, options.parallel),
-        Method::Axis => axis::generate(&mesh),
-    };
-    diagnostics.fallback_tangents = fallback::repair(&mesh, &mut corners, options.parallel);
-
     // Axis tangents have no UV handedness to convert.
-    let mut corner_tangents = corners;
-    if options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft {
-        for t in &mut corner_tangents {
-            t[3] = -t[3];
+    let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
+    let corner_tangents = match options.method {
+        Method::MikkTSpace => {
+            let (corners, fallbacks) = mikktspace::generate(&mesh, options.parallel, flip_w);
+            diagnostics.fallback_tangents = fallbacks;
+            corners
         }
-    }
+        Method::Fast | Method::Axis => {
+            let mut corners = match options.method {
+                Method::Fast => fast::generate(&mesh, options.weighting, options.parallel),
+                _ => axis::generate(&mesh),
+            };
+            diagnostics.fallback_tangents = fallback::repair(&mesh, &mut corners, options.parallel);
+            if flip_w {
+                for t in &mut corners {
+                    t[3] = -t[3];
+                }
+            }
+            corners
+        }
+    };
 
     let mut split = split::plan(
         mesh.indices,

@@ -264,7 +264,7 @@ impl CornerTable {
     }
 
     /// Splits the classes into about `pieces` ranges holding similar numbers of corners.
-    fn chunks(&self, pieces: usize) -> Vec<std::ops::Range<usize>> {
+    pub fn chunks(&self, pieces: usize) -> Vec<std::ops::Range<usize>> {
         let class_count = self.offsets.len() - 1;
         let total = self.corners.len();
         let target = (total / pieces.max(1)).max(4096);
