@@ -333,6 +333,25 @@ mod tests {
     }
 
     #[test]
+    fn edited_json_round_trips_through_glb() {
+        use super::super::json::Document;
+        let bytes = fixture("Box/Box.glb");
+        let glb = parse(&bytes).unwrap();
+        let doc = Document::parse(glb.json).unwrap();
+        let mut editor = doc.editor();
+        let asset = doc.root().get("asset").unwrap();
+        editor.set_member(asset, "generator", "\"tspace\"").unwrap();
+        let json = editor.render().unwrap();
+        let out = write(json.as_bytes(), glb.bin, &glb.other_chunks).unwrap();
+        let again = parse(&out).unwrap();
+        assert_eq!(again.bin, glb.bin);
+        let doc = Document::parse(again.json).unwrap();
+        let generator = doc.root().get("asset").and_then(|a| a.get("generator"));
+        assert_eq!(generator.and_then(|g| g.as_str()), Some("tspace"));
+        assert!(again.json.ends_with(b"}") || again.json.ends_with(b" "));
+    }
+
+    #[test]
     fn corpus_round_trips() {
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/corpus");
         let files = [

@@ -693,18 +693,21 @@ fn check_unique_keys(members: &[Member]) -> Result<(), Fail> {
     if members.len() < 2 {
         return Ok(());
     }
-    let mut order: Vec<usize> = (0..members.len()).collect();
-    order.sort_by(|&a, &b| members[a].key.cmp(&members[b].key).then(a.cmp(&b)));
-    // Report the duplicate that comes first in the text.
-    let mut first_dup: Option<usize> = None;
-    for pair in order.windows(2) {
-        if let [a, b] = *pair {
-            if members[a].key == members[b].key {
-                first_dup = Some(first_dup.map_or(b, |d| d.min(b)));
-            }
-        }
-    }
-    match first_dup.and_then(|i| members.get(i)) {
+    let mut sorted: Vec<&Member> = members.iter().collect();
+    sorted.sort_by(|a, b| {
+        a.key
+            .cmp(&b.key)
+            .then(a.key_span.start.cmp(&b.key_span.start))
+    });
+    // Of all the repeats, report the one that comes first in the text.
+    let repeat = sorted
+        .windows(2)
+        .filter_map(|pair| match pair {
+            [a, b] if a.key == b.key => Some(*b),
+            _ => None,
+        })
+        .min_by_key(|m| m.key_span.start);
+    match repeat {
         Some(m) => Err((
             m.key_span.start,
             ParseErrorKind::DuplicateKey { key: m.key.clone() },
@@ -887,17 +890,12 @@ impl<'d, 'a> Editor<'d, 'a> {
             *value = NewValue::Text(text);
             return Ok(());
         }
-        match object
+        let existing = object
             .as_object()
-            .and_then(|ms| ms.iter().position(|m| m.key == key))
-        {
-            Some(i) if !edit.members.get(i).is_some_and(|m| m.3) => {
-                let span = object
-                    .as_object()
-                    .and_then(|ms| ms.get(i))
-                    .map(|m| m.value.span.clone())
-                    .unwrap_or(0..0);
-                self.replacements.push((span, text));
+            .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
+        match existing {
+            Some((i, member)) if !edit.members.get(i).is_some_and(|m| m.3) => {
+                self.replacements.push((member.value.span.clone(), text));
             }
             _ => edit.added.push((key.into(), NewValue::Text(text))),
         }
@@ -1129,17 +1127,15 @@ impl ObjectEdit {
         }
         // New members copy the layout of the last existing ones: the whitespace before a key,
         // and the spelling of the colon.
-        let (at, lead, colon) = match n {
-            0 => (self.open + 1, "", ":"),
-            _ => {
-                let last = &self.members[n - 1];
+        let (at, lead, colon) = match self.members.as_slice() {
+            [] => (self.open + 1, "", ":"),
+            [.., (key, value, _, _)] => {
                 let lead = if n >= 2 {
-                    lead_after_comma(slice(source, end(n - 2)..start(n - 1))?)
+                    lead_after_comma(slice(source, end(n - 2)..key.start)?)
                 } else {
-                    slice(source, self.open + 1..start(0))?
+                    slice(source, self.open + 1..key.start)?
                 };
-                let colon = slice(source, last.0.end..last.1.start)?;
-                (end(n - 1), lead, colon)
+                (value.end, lead, slice(source, key.end..value.start)?)
             }
         };
         let mut comma = self.members.iter().any(|m| !m.3);
