@@ -91,8 +91,9 @@ pub struct Diagnostics {
 /// longest edge, about where f32 positions stop resolving it.
 const RELATIVE_AREA_EPSILON: f32 = 1e-7;
 
+/// Per-triangle findings, gathered by whichever pass already visits the triangles.
 #[derive(Default)]
-struct TriangleTallies {
+pub(crate) struct TriangleTallies {
     duplicate: Tally,
     zero_area: Tally,
     zero_uv: Tally,
@@ -100,34 +101,32 @@ struct TriangleTallies {
     non_finite: Tally,
 }
 
-impl TriangleTallies {
-    fn append(mut self, later: TriangleTallies) -> TriangleTallies {
-        self.duplicate.append(&later.duplicate);
-        self.zero_area.append(&later.zero_area);
-        self.zero_uv.append(&later.zero_uv);
-        self.mirrored.append(&later.mirrored);
-        self.non_finite.append(&later.non_finite);
-        self
-    }
+/// What the triangle checks need to know besides the triangle itself.
+pub(crate) struct TriangleCheck<'a> {
+    pub uv_origin: UvOrigin,
+    pub has_uvs: bool,
+    /// Vertices with a non-finite position, normal or texture coordinate; empty when there are
+    /// none (the common case, which then costs nothing per triangle).
+    pub non_finite_vertex: &'a [bool],
 }
 
-fn classify_triangles(
-    mesh: &Mesh<'_>,
-    uv_origin: UvOrigin,
-    range: std::ops::Range<usize>,
-) -> TriangleTallies {
-    let mut tallies = TriangleTallies::default();
-    for t in range {
-        let [a, b, c] = mesh.triangle(t);
-        let p = [mesh.positions[a], mesh.positions[b], mesh.positions[c]];
-        let n = [mesh.normals[a], mesh.normals[b], mesh.normals[c]];
-        let uv = [mesh.uv(a), mesh.uv(b), mesh.uv(c)];
-        let index = t as u32;
-        let finite = p.iter().chain(n.iter()).all(|&v| is_finite3(v))
-            && uv.iter().flatten().all(|x| x.is_finite());
-        if !finite {
+impl TriangleCheck<'_> {
+    /// Checks triangle `index`, whose vertices are `vertices`, positions `p` and texture
+    /// coordinates `uv` (zeros without UVs).
+    #[inline]
+    pub fn check(
+        &self,
+        tallies: &mut TriangleTallies,
+        index: usize,
+        vertices: [usize; 3],
+        p: &[[f32; 3]; 3],
+        uv: &[[f32; 2]; 3],
+    ) {
+        let index = index as u32;
+        if !self.non_finite_vertex.is_empty() && vertices.iter().any(|&v| self.non_finite_vertex[v])
+        {
             tallies.non_finite.add(index);
-            continue;
+            return;
         }
         if same_position(p[0], p[1]) || same_position(p[1], p[2]) || same_position(p[2], p[0]) {
             tallies.duplicate.add(index);
@@ -138,7 +137,7 @@ fn classify_triangles(
                 tallies.zero_area.add(index);
             }
         }
-        if mesh.uvs.is_some() {
+        if self.has_uvs {
             let d1 = [uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]];
             let d2 = [uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]];
             let d3 = [uv[2][0] - uv[1][0], uv[2][1] - uv[1][1]];
@@ -152,7 +151,7 @@ fn classify_triangles(
             } else {
                 // With the origin at the top left (glTF), v runs downwards, so an unmirrored
                 // front face has a negative raw UV area.
-                let mirrored = match uv_origin {
+                let mirrored = match self.uv_origin {
                     UvOrigin::TopLeft => signed > 0.0,
                     UvOrigin::BottomLeft => signed < 0.0,
                 };
@@ -162,23 +161,51 @@ fn classify_triangles(
             }
         }
     }
-    tallies
 }
 
-/// Input-side diagnostics: triangle and normal checks. Output-side counts (split, handedness,
-/// fallbacks) are filled in later by the steps that see them.
-pub(crate) fn analyze(mesh: &Mesh<'_>, options: &Options) -> Diagnostics {
+impl TriangleTallies {
+    /// Appends the tallies of later triangles.
+    pub fn append(mut self, later: TriangleTallies) -> TriangleTallies {
+        self.duplicate.append(&later.duplicate);
+        self.zero_area.append(&later.zero_area);
+        self.zero_uv.append(&later.zero_uv);
+        self.mirrored.append(&later.mirrored);
+        self.non_finite.append(&later.non_finite);
+        self
+    }
+}
+
+impl Diagnostics {
+    pub(crate) fn set_triangles(&mut self, tallies: TriangleTallies) {
+        self.duplicate_position_triangles = tallies.duplicate;
+        self.zero_area_triangles = tallies.zero_area;
+        self.zero_uv_area_triangles = tallies.zero_uv;
+        self.mirrored_uv_triangles = tallies.mirrored;
+        self.non_finite_triangles = tallies.non_finite;
+    }
+}
+
+/// The triangle checks as a pass of their own, for the methods that do not visit triangles
+/// anyway.
+pub(crate) fn analyze_triangles(
+    mesh: &Mesh<'_>,
+    check: &TriangleCheck<'_>,
+    parallel: bool,
+) -> TriangleTallies {
     let triangle_count = mesh.triangle_count();
     const CHUNK: usize = 16384;
     let chunk_count = triangle_count.div_ceil(CHUNK);
     let chunk = |i: usize| {
-        classify_triangles(
-            mesh,
-            options.uv_origin,
-            i * CHUNK..((i + 1) * CHUNK).min(triangle_count),
-        )
+        let mut tallies = TriangleTallies::default();
+        for t in i * CHUNK..((i + 1) * CHUNK).min(triangle_count) {
+            let v = mesh.triangle(t);
+            let p = v.map(|v| mesh.positions[v]);
+            let uv = v.map(|v| mesh.uv(v));
+            check.check(&mut tallies, t, v, &p, &uv);
+        }
+        tallies
     };
-    let tallies = if options.parallel {
+    if parallel {
         (0..chunk_count)
             .into_par_iter()
             .map(chunk)
@@ -189,12 +216,20 @@ pub(crate) fn analyze(mesh: &Mesh<'_>, options: &Options) -> Diagnostics {
         (0..chunk_count)
             .map(chunk)
             .fold(TriangleTallies::default(), TriangleTallies::append)
-    };
+    }
+}
 
+/// Input-side diagnostics that look at vertices: normal checks, and which vertices hold
+/// non-finite values (returned for [`TriangleCheck`]; empty when all are finite). Triangle
+/// checks and output-side counts (split, handedness, fallbacks) are filled in by the steps that
+/// see them.
+pub(crate) fn analyze_vertices(mesh: &Mesh<'_>, options: &Options) -> (Diagnostics, Vec<bool>) {
     let mut zero_normals = Tally::default();
     let mut non_unit_normals = Tally::default();
+    let mut any_non_finite = false;
     for (v, &n) in mesh.normals.iter().enumerate() {
         if !is_finite3(n) {
+            any_non_finite = true;
             continue;
         }
         // In f64: an f32 length underflows to zero for tiny normals the core still uses.
@@ -206,18 +241,31 @@ pub(crate) fn analyze(mesh: &Mesh<'_>, options: &Options) -> Diagnostics {
             non_unit_normals.add(v as u32);
         }
     }
+    let finite_vertex = |v: usize| {
+        is_finite3(mesh.positions[v])
+            && is_finite3(mesh.normals[v])
+            && mesh.uv(v).iter().all(|x| x.is_finite())
+    };
+    any_non_finite = any_non_finite
+        || !mesh.positions.iter().all(|&p| is_finite3(p))
+        || mesh
+            .uvs
+            .is_some_and(|uvs| !uvs.iter().flatten().all(|x| x.is_finite()));
+    let non_finite_vertex = if any_non_finite {
+        (0..mesh.vertex_count())
+            .map(|v| !finite_vertex(v))
+            .collect()
+    } else {
+        Vec::new()
+    };
 
-    Diagnostics {
+    let diagnostics = Diagnostics {
         method: options.method,
-        triangles: triangle_count as u64,
+        triangles: mesh.triangle_count() as u64,
         vertices_in: mesh.vertex_count() as u64,
-        duplicate_position_triangles: tallies.duplicate,
-        zero_area_triangles: tallies.zero_area,
-        zero_uv_area_triangles: tallies.zero_uv,
-        mirrored_uv_triangles: tallies.mirrored,
-        non_finite_triangles: tallies.non_finite,
         zero_normals,
         non_unit_normals,
         ..Diagnostics::default()
-    }
+    };
+    (diagnostics, non_finite_vertex)
 }

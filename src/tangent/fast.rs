@@ -157,7 +157,7 @@ pub(crate) fn generate(mesh: &Mesh<'_>, weighting: Weighting, parallel: bool) ->
     }
 
     table
-        .slot_of_corner
+        .slot_of_corner(mesh.indices.len())
         .iter()
         .map(|&slot| results[slot as usize])
         .collect()

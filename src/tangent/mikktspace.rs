@@ -33,7 +33,7 @@
 //!   as `bevy_mikktspace`'s `corrected-edge-sorting` feature does.
 
 use super::acos::acos_slice;
-use super::diagnostics::FallbackCounts;
+use super::diagnostics::{FallbackCounts, TriangleCheck, TriangleTallies};
 use super::fallback::{self, Problem};
 use super::math::{
     Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero, not_zero, reject,
@@ -64,29 +64,44 @@ pub(crate) fn generate(
     mesh: &Mesh<'_>,
     parallel: bool,
     flip_w: bool,
-) -> (Vec<[f32; 4]>, FallbackCounts) {
+    check: &TriangleCheck<'_>,
+) -> Output {
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh);
 
     let mut frames = vec![Frame::default(); triangle_count];
     let mut flags = vec![0u8; triangle_count];
-    let classify = |(t, (frame, flag)): (usize, (&mut Frame, &mut u8))| {
-        (*frame, *flag) = triangle_frame(mesh, t);
+    // The diagnostics' triangle checks ride along: they read the same corners.
+    const CHUNK: usize = 16384;
+    let classify = |(chunk, (frames, flags)): (usize, (&mut [Frame], &mut [u8]))| {
+        let mut tallies = TriangleTallies::default();
+        for (k, (frame, flag)) in frames.iter_mut().zip(flags.iter_mut()).enumerate() {
+            let t = chunk * CHUNK + k;
+            let v = mesh.triangle(t);
+            let p = v.map(|v| mesh.positions[v]);
+            let uv = v.map(|v| mesh.uv(v));
+            (*frame, *flag) = triangle_frame(&p, &uv);
+            check.check(&mut tallies, t, v, &p, &uv);
+        }
+        tallies
     };
-    if parallel {
+    let triangles = if parallel {
         frames
-            .par_iter_mut()
-            .zip(flags.par_iter_mut())
+            .par_chunks_mut(CHUNK)
+            .zip(flags.par_chunks_mut(CHUNK))
             .enumerate()
-            .with_min_len(4096)
-            .for_each(classify);
+            .map(classify)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(TriangleTallies::default(), TriangleTallies::append)
     } else {
         frames
-            .iter_mut()
-            .zip(flags.iter_mut())
+            .chunks_mut(CHUNK)
+            .zip(flags.chunks_mut(CHUNK))
             .enumerate()
-            .for_each(classify);
-    }
+            .map(classify)
+            .fold(TriangleTallies::default(), TriangleTallies::append)
+    };
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
@@ -157,7 +172,17 @@ pub(crate) fn generate(
         (out, repairs)
     };
     repairs.shrink_to_fit();
-    (out, FallbackCounts::from_unordered(repairs))
+    Output {
+        corners: out,
+        fallbacks: FallbackCounts::from_unordered(repairs),
+        triangles,
+    }
+}
+
+pub(crate) struct Output {
+    pub corners: Vec<[f32; 4]>,
+    pub fallbacks: FallbackCounts,
+    pub triangles: TriangleTallies,
 }
 
 /// The raw (method) result of the first listed corner of every vertex, kept only when some
@@ -188,13 +213,10 @@ struct Piece {
 }
 
 /// The reference's per-triangle set-up, in its operation order so results are bit-identical.
-fn triangle_frame(mesh: &Mesh<'_>, t: usize) -> (Frame, u8) {
-    let [a, b, c] = mesh.triangle(t);
-    let p = [mesh.positions[a], mesh.positions[b], mesh.positions[c]];
+fn triangle_frame(p: &[[f32; 3]; 3], tx: &[[f32; 2]; 3]) -> (Frame, u8) {
     if same_position(p[0], p[1]) || same_position(p[1], p[2]) || same_position(p[2], p[0]) {
         return (Frame::default(), DEGENERATE);
     }
-    let tx = [mesh.uv(a), mesh.uv(b), mesh.uv(c)];
     let d_tx = [
         [tx[1][0] - tx[0][0], tx[1][1] - tx[0][1]],
         [tx[2][0] - tx[0][0], tx[2][1] - tx[0][1]],

@@ -248,16 +248,27 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
         (None, None) => unreachable!("normals are generated whenever the input has none"),
     };
 
-    let mut diagnostics = diagnostics::analyze(&mesh, options);
+    let (mut diagnostics, non_finite_vertex) = diagnostics::analyze_vertices(&mesh, options);
+    let triangle_check = diagnostics::TriangleCheck {
+        uv_origin: options.uv_origin,
+        has_uvs: mesh.uvs.is_some(),
+        non_finite_vertex: &non_finite_vertex,
+    };
     // Axis tangents have no UV handedness to convert.
     let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
     let corner_tangents = match options.method {
         Method::MikkTSpace => {
-            let (corners, fallbacks) = mikktspace::generate(&mesh, options.parallel, flip_w);
-            diagnostics.fallback_tangents = fallbacks;
-            corners
+            let out = mikktspace::generate(&mesh, options.parallel, flip_w, &triangle_check);
+            diagnostics.fallback_tangents = out.fallbacks;
+            diagnostics.set_triangles(out.triangles);
+            out.corners
         }
         Method::Fast | Method::Axis => {
+            diagnostics.set_triangles(diagnostics::analyze_triangles(
+                &mesh,
+                &triangle_check,
+                options.parallel,
+            ));
             let mut corners = match options.method {
                 Method::Fast => fast::generate(&mesh, options.weighting, options.parallel),
                 _ => axis::generate(&mesh),

@@ -31,11 +31,6 @@ impl SplitPlan {
     }
 }
 
-#[inline]
-fn key(t: &[f32; 4]) -> [u32; 4] {
-    t.map(|x| if x == 0.0 { 0 } else { x.to_bits() })
-}
-
 /// Builds the plan and fills the split and handedness counts of `diagnostics`.
 pub(crate) fn plan(
     indices: &[u32],
@@ -46,7 +41,6 @@ pub(crate) fn plan(
 ) -> SplitPlan {
     let mut source_vertex: Vec<u32> = (0..vertex_count as u32).collect();
     let mut vertex_tangents: Vec<[f32; 4]> = vec![[0.0; 4]; vertex_count];
-    let mut keys: Vec<[u32; 4]> = vec![[NONE; 4]; vertex_count];
     // Chains of duplicates: next_copy[v] is the next output vertex copying the same input vertex.
     let mut next_copy: Vec<u32> = vec![NONE; vertex_count];
     // Bit 0: a corner with w = +1 was seen; bit 1: w = -1.
@@ -55,18 +49,17 @@ pub(crate) fn plan(
 
     for (&v, tangent) in indices.iter().zip(corner_tangents) {
         let v = v as usize;
-        let k = key(tangent);
         let first_use = signs[v] == 0;
         signs[v] |= if tangent[3] > 0.0 { 1 } else { 2 };
         if first_use {
-            keys[v] = k;
             vertex_tangents[v] = *tangent;
             out_indices.push(v as u32);
             continue;
         }
         let mut at = v;
         loop {
-            if keys[at] == k {
+            // Float equality: -0 and 0 are the same tangent (tangents are never NaN here).
+            if vertex_tangents[at] == *tangent {
                 out_indices.push(at as u32);
                 break;
             }
@@ -74,7 +67,6 @@ pub(crate) fn plan(
                 let copy = source_vertex.len();
                 source_vertex.push(v as u32);
                 vertex_tangents.push(*tangent);
-                keys.push(k);
                 next_copy.push(NONE);
                 next_copy[at] = copy as u32;
                 out_indices.push(copy as u32);

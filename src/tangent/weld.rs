@@ -100,28 +100,41 @@ pub(crate) fn weld_vertices(key: &Key<'_>) -> Weld {
     let mut table = vec![NONE; buckets];
     let mut class_of_vertex = vec![NONE; vertex_count];
     let mut class_count = 0u32;
-    for v in 0..vertex_count {
-        if !key.self_equal(v) {
-            class_of_vertex[v] = class_count;
-            class_count += 1;
-            continue;
+    // Hash a block of vertices first and touch their buckets: independent loads that the CPU
+    // overlaps, where the insertion loop below would wait for one cache miss at a time.
+    const BLOCK: usize = 32;
+    let mut home = [0usize; BLOCK];
+    for block_start in (0..vertex_count).step_by(BLOCK) {
+        let block = block_start..(block_start + BLOCK).min(vertex_count);
+        let mut touched = 0u32;
+        for (v, slot) in block.clone().zip(&mut home) {
+            *slot = key.hash(v) as usize & mask;
+            touched ^= table[*slot];
         }
-        let mut slot = key.hash(v) as usize & mask;
-        let mut probe = 0;
-        loop {
-            let first = table[slot];
-            if first == NONE {
-                table[slot] = v as u32;
+        std::hint::black_box(touched);
+        for (v, &slot) in block.zip(&home) {
+            if !key.self_equal(v) {
                 class_of_vertex[v] = class_count;
                 class_count += 1;
-                break;
+                continue;
             }
-            if key.equal(first as usize, v) {
-                class_of_vertex[v] = class_of_vertex[first as usize];
-                break;
+            let mut slot = slot;
+            let mut probe = 0;
+            loop {
+                let first = table[slot];
+                if first == NONE {
+                    table[slot] = v as u32;
+                    class_of_vertex[v] = class_count;
+                    class_count += 1;
+                    break;
+                }
+                if key.equal(first as usize, v) {
+                    class_of_vertex[v] = class_of_vertex[first as usize];
+                    break;
+                }
+                probe += 1;
+                slot = (slot + probe) & mask;
             }
-            probe += 1;
-            slot = (slot + probe) & mask;
         }
     }
     Weld {
@@ -144,8 +157,6 @@ pub(crate) struct CornerTable {
     /// `offsets[c]..offsets[c + 1]` indexes `corners` for class `c`.
     pub offsets: Vec<u32>,
     pub corners: Vec<u32>,
-    /// For every corner, its position in `corners` (`NONE` for corners left out).
-    pub slot_of_corner: Vec<u32>,
 }
 
 impl CornerTable {
@@ -209,38 +220,44 @@ impl CornerTable {
         }
         offsets[class_count] = running;
 
-        let corners: Vec<AtomicU32> = (0..running).map(|_| AtomicU32::new(0)).collect();
-        let slot_of_corner: Vec<AtomicU32> =
-            (0..corner_count).map(|_| AtomicU32::new(NONE)).collect();
-        let fill_block = |(b, mut next): (usize, Vec<u32>)| {
-            let first = b * block_len;
-            let end = ((b + 1) * block_len).min(corner_count);
-            for (c, slot) in slot_of_corner[first..end].iter().enumerate() {
-                let c = first + c;
+        let corners = if blocks > 1 {
+            let corners: Vec<AtomicU32> = (0..running).map(|_| AtomicU32::new(0)).collect();
+            let fill_block = |(b, mut next): (usize, Vec<u32>)| {
+                for c in b * block_len..((b + 1) * block_len).min(corner_count) {
+                    let class = class_of(c);
+                    if class != NONE {
+                        let at = next[class as usize];
+                        next[class as usize] += 1;
+                        // Every place is written by exactly one block, and rayon's join makes
+                        // the writes visible before the table is read: relaxed stores suffice.
+                        corners[at as usize].store(c as u32, Ordering::Relaxed);
+                    }
+                }
+            };
+            counts.into_par_iter().enumerate().for_each(fill_block);
+            corners.into_iter().map(AtomicU32::into_inner).collect()
+        } else {
+            let mut corners = vec![0u32; running as usize];
+            let next = &mut counts[0];
+            for c in 0..corner_count {
                 let class = class_of(c);
                 if class != NONE {
-                    let at = next[class as usize];
+                    corners[next[class as usize] as usize] = c as u32;
                     next[class as usize] += 1;
-                    // Every place is written by exactly one block, and rayon's join makes the
-                    // writes visible before the table is read, so relaxed stores suffice.
-                    corners[at as usize].store(c as u32, Ordering::Relaxed);
-                    slot.store(at, Ordering::Relaxed);
                 }
             }
+            corners
         };
-        if blocks > 1 {
-            counts.into_par_iter().enumerate().for_each(fill_block);
-        } else {
-            counts.into_iter().enumerate().for_each(fill_block);
+        CornerTable { offsets, corners }
+    }
+
+    /// For every corner, its place in `corners` (`NONE` for corners left out).
+    pub fn slot_of_corner(&self, corner_count: usize) -> Vec<u32> {
+        let mut slots = vec![NONE; corner_count];
+        for (slot, &corner) in self.corners.iter().enumerate() {
+            slots[corner as usize] = slot as u32;
         }
-        CornerTable {
-            offsets,
-            corners: corners.into_iter().map(AtomicU32::into_inner).collect(),
-            slot_of_corner: slot_of_corner
-                .into_iter()
-                .map(AtomicU32::into_inner)
-                .collect(),
-        }
+        slots
     }
 
     /// Cuts `per_slot` (one entry per place in `corners`) into pieces that each cover whole
