@@ -5,3 +5,4 @@
 //! the bytes actually present or by an explicit limit, and every recursion has a depth limit.
 
 pub mod gltf;
+pub mod uri;
