@@ -331,14 +331,14 @@ fn bench_mesh(mesh: &BenchMesh, config: &Config) -> MeshReport {
             m.heap = Some(heap);
         }
         if let Some(exact) = &mesh.exact_tangents {
-            m.error = error_against_exact(output.corners(), &mesh.indices, exact);
+            m.error = error_against_exact(&output.corners(), &mesh.indices, exact);
         }
         match m.contender {
             Contender::MikkSingle => mikk_corners = Some(output),
             Contender::Bevy => {
                 mikk_vs_bevy_degrees = mikk_corners
                     .take()
-                    .map(|mikk| max_angle_between(mikk.corners(), output.corners()));
+                    .map(|mikk| max_angle_between(&mikk.corners(), &output.corners()));
             }
             _ => {}
         }

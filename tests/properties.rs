@@ -180,7 +180,7 @@ fn check_output(mesh: &RandomMesh, options: &Options, out: &Tangents) -> Result<
     let output_count = split.source_vertex.len();
 
     // Shapes.
-    prop_assert_eq!(out.corner_tangents.len(), corner_count);
+    prop_assert_eq!(out.corner_tangents().len(), corner_count);
     prop_assert_eq!(split.indices.len(), corner_count);
     prop_assert_eq!(split.vertex_tangents.len(), output_count);
     prop_assert!(
@@ -223,10 +223,11 @@ fn check_output(mesh: &RandomMesh, options: &Options, out: &Tangents) -> Result<
         ),
     }
 
-    // Every corner: a valid tangent, reproduced exactly by the split.
+    // Every corner (its output vertex's tangent): valid, and copying the right input vertex.
+    // That the per-corner values are MikkTSpace's is the oracle tests' job.
     let mut used = vec![false; output_count];
     for c in 0..corner_count {
-        let t = out.corner_tangents[c];
+        let t = out.corner_tangent(c);
         let o = split.indices[c] as usize;
         used[o] = true;
         let normal = match &out.normals {
@@ -234,15 +235,6 @@ fn check_output(mesh: &RandomMesh, options: &Options, out: &Tangents) -> Result<
             Some(normals) => unit64(normals[o]).unwrap_or(PLUS_Z),
         };
         check_tangent(t, normal, &format!("corner {c}"))?;
-        prop_assert_eq!(
-            key4(&split.vertex_tangents[o]),
-            key4(&t),
-            "corner {}: output vertex {} has tangent {:?}, the corner {:?}",
-            c,
-            o,
-            split.vertex_tangents[o],
-            t
-        );
         prop_assert_eq!(
             split.source_vertex[o] as usize,
             mesh.vertex_of_corner(c),
@@ -399,7 +391,7 @@ fn check_diagnostics(
         "duplicate_position_triangles",
     )?;
     let mixed: Vec<u32> = out
-        .corner_tangents
+        .corner_tangents()
         .chunks_exact(3)
         .enumerate()
         .filter(|(_, c)| c[0][3] != c[1][3] || c[0][3] != c[2][3])
@@ -416,7 +408,7 @@ fn check_diagnostics(
     for c in 0..corner_count {
         let o = out.split.indices[c] as usize;
         let normal = out.normals.as_ref().map(|n| key3(&n[o]));
-        let w = out.corner_tangents[c][3];
+        let w = out.corner_tangent(c)[3];
         *signs
             .entry((out.split.source_vertex[o], normal))
             .or_default() |= if w > 0.0 { 1 } else { 2 };
@@ -495,8 +487,8 @@ fn same_normal_mode(a: Option<NormalMode>, b: Option<NormalMode>) -> bool {
 /// Bit-identical results.
 fn check_identical(a: &Tangents, b: &Tangents, what: &str) -> Result<(), TestCaseError> {
     prop_assert_eq!(
-        bits4(&a.corner_tangents),
-        bits4(&b.corner_tangents),
+        bits4(&a.corner_tangents()),
+        bits4(&b.corner_tangents()),
         "{}: corner tangents differ",
         what
     );
@@ -526,7 +518,12 @@ fn check_identical(a: &Tangents, b: &Tangents, what: &str) -> Result<(), TestCas
 /// The other UV origin only negates `w` of the UV methods (and changes which triangles count as
 /// mirrored).
 fn check_origin_swap(method: Method, a: &Tangents, b: &Tangents) -> Result<(), TestCaseError> {
-    for (c, (ta, tb)) in a.corner_tangents.iter().zip(&b.corner_tangents).enumerate() {
+    for (c, (ta, tb)) in a
+        .corner_tangents()
+        .iter()
+        .zip(&b.corner_tangents())
+        .enumerate()
+    {
         let expected_w = if method == Method::Axis {
             ta[3]
         } else {
@@ -649,8 +646,8 @@ fn check_everything(mesh: &RandomMesh, options: Options) -> Result<(), TestCaseE
         };
         let bare = run(&without, &options)?;
         prop_assert_eq!(
-            bits4(&bare.corner_tangents),
-            bits4(&sequential.corner_tangents)
+            bits4(&bare.corner_tangents()),
+            bits4(&sequential.corner_tangents())
         );
         prop_assert_eq!(&bare.split, &sequential.split);
     }
@@ -728,7 +725,7 @@ proptest! {
         let unindexed_mesh = mesh.unindexed();
         let unindexed = run(&unindexed_mesh, &options)?;
         check_output(&unindexed_mesh, &options, &unindexed)?;
-        for (c, (a, b)) in indexed.corner_tangents.iter().zip(&unindexed.corner_tangents).enumerate() {
+        for (c, (a, b)) in indexed.corner_tangents().iter().zip(&unindexed.corner_tangents()).enumerate() {
             prop_assert_eq!(key4(a), key4(b), "corner {}: indexed {:?}, unindexed {:?}", c, a, b);
         }
     }
@@ -1096,7 +1093,11 @@ fn mirrored_half_quad_flips_handedness() {
             continue;
         }
         let out = assert_valid(&mesh, &options);
-        let w = out.corner_tangents.iter().map(|t| t[3]).collect::<Vec<_>>();
+        let w = out
+            .corner_tangents()
+            .iter()
+            .map(|t| t[3])
+            .collect::<Vec<_>>();
         assert!(w[0] == w[1] && w[1] == w[2], "{options:?}: {w:?}");
         assert!(w[3] == w[4] && w[4] == w[5], "{options:?}: {w:?}");
         assert_eq!(w[0], -w[3], "{options:?}: {w:?}");
@@ -1106,7 +1107,7 @@ fn mirrored_half_quad_flips_handedness() {
             UvOrigin::TopLeft => -1.0,
         };
         assert_eq!(w[0], expected_w, "{options:?}");
-        for t in &out.corner_tangents[..3] {
+        for t in &out.corner_tangents()[..3] {
             assert!((t[0] - 1.0).abs() < 1e-6, "{options:?}: {t:?}");
         }
         let d = &out.diagnostics;
@@ -1241,7 +1242,7 @@ fn axis_needs_no_uvs_and_the_uv_methods_do() {
             let result = generate(&mesh.input(), &options);
             if options.method == Method::Axis {
                 let out = assert_valid(&mesh, &options);
-                assert!(out.corner_tangents.iter().all(|t| t[3] == 1.0));
+                assert!(out.corner_tangents().iter().all(|t| t[3] == 1.0));
                 assert_eq!(out.diagnostics.fallback_tangents.corners.count, 0);
             } else {
                 assert_eq!(
@@ -1265,7 +1266,7 @@ fn empty_mesh_is_fine() {
     };
     for options in all_options() {
         let out = assert_valid(&mesh, &options);
-        assert!(out.corner_tangents.is_empty() && out.split.source_vertex.is_empty());
+        assert!(out.corner_tangents().is_empty() && out.split.source_vertex.is_empty());
     }
     let unused_only = RandomMesh {
         positions: vec![[0.0; 3]; 4],

@@ -149,10 +149,10 @@ pub enum Output {
 
 impl Output {
     /// One tangent per corner (per index), `xyz` and the sign in `w`.
-    pub fn corners(&self) -> &[[f32; 4]] {
+    pub fn corners(&self) -> std::borrow::Cow<'_, [[f32; 4]]> {
         match self {
-            Output::Tspace(t) => &t.corner_tangents,
-            Output::Corners(c) => c,
+            Output::Tspace(t) => std::borrow::Cow::Owned(t.corner_tangents()),
+            Output::Corners(c) => std::borrow::Cow::Borrowed(c),
         }
     }
 }

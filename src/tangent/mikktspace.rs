@@ -33,16 +33,16 @@
 //!   as `bevy_mikktspace`'s `corrected-edge-sorting` feature does.
 
 use super::acos::acos_slice;
-use super::diagnostics::{FallbackCounts, TriangleCheck, TriangleTallies};
+use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTallies};
 use super::fallback::{self, Problem};
 use super::math::{
     Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero, not_zero, reject,
     same_position, scale, sub,
 };
-use super::output::SharedCorners;
+use super::output::{Copies, SharedSplit};
+use super::split::SplitPlan;
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, Ordering};
 
 const DEGENERATE: u8 = 1;
 const GROUP_WITH_ANY: u8 = 2;
@@ -58,14 +58,16 @@ struct Frame {
     t: [f32; 3],
 }
 
-/// Per-corner tangents, final: repaired where the reference's would be invalid (counted in the
-/// returned [`FallbackCounts`]) and with `w` negated when `flip_w` is set.
+/// MikkTSpace tangents as a split plan: repaired where the reference's would be invalid, with
+/// `w` negated when `flip_w` is set. Fills the triangle, fallback and split counts of
+/// `diagnostics`.
 pub(crate) fn generate(
     mesh: &Mesh<'_>,
     parallel: bool,
     flip_w: bool,
     check: &TriangleCheck<'_>,
-) -> Output {
+    diagnostics: &mut Diagnostics,
+) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh);
 
@@ -129,80 +131,57 @@ pub(crate) fn generate(
         table: &table,
         flip_w,
     };
-    let corner_count = mesh.indices.len();
-    // Degenerate corners copy the raw result of their vertex's first listed corner.
-    let first_raw = if has_degenerate {
-        (0..weld.class_count)
-            .map(|_| [const { AtomicU32::new(0) }; 4])
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let first_raw = FirstRaw(first_raw);
-
-    let (out, mut repairs) = if parallel {
-        let shared = SharedCorners::new(corner_count);
-        let pieces = table.chunks(rayon::current_num_threads() * 16);
-        let parts: Vec<Piece> = pieces
-            .into_par_iter()
-            .map(|range| {
-                let mut put = |c: usize, t: [f32; 4]| shared.put(c, t);
-                context.process_classes(range, &flags, &first_raw, &mut put)
-            })
-            .collect();
-        let mut repairs = Vec::new();
-        let mut touched = Vec::new();
-        for part in parts {
-            repairs.extend(part.repairs);
-            touched.extend(part.touched);
-        }
-        let mut put = |c: usize, t: [f32; 4]| shared.put(c, t);
-        context.group_touched_vertices(&touched, &mut flags, &first_raw, &mut repairs, &mut put);
-        context.finish_degenerate(&flags, &first_raw, &mut repairs, &mut put);
-        (shared.into_vec(), repairs)
-    } else {
-        let mut out = vec![[0.0f32; 4]; corner_count];
-        let mut put = |c: usize, t: [f32; 4]| out[c] = t;
-        let Piece {
-            mut repairs,
-            touched,
-        } = context.process_classes(0..weld.class_count, &flags, &first_raw, &mut put);
-        context.group_touched_vertices(&touched, &mut flags, &first_raw, &mut repairs, &mut put);
-        context.finish_degenerate(&flags, &first_raw, &mut repairs, &mut put);
-        (out, repairs)
-    };
-    repairs.shrink_to_fit();
-    Output {
-        corners: out,
-        fallbacks: FallbackCounts::from_unordered(repairs),
-        triangles,
-    }
-}
-
-pub(crate) struct Output {
-    pub corners: Vec<[f32; 4]>,
-    pub fallbacks: FallbackCounts,
-    pub triangles: TriangleTallies,
-}
-
-/// The raw (method) result of the first listed corner of every vertex, kept only when some
-/// degenerate triangle needs to copy it.
-struct FirstRaw(Vec<[AtomicU32; 4]>);
-
-impl FirstRaw {
-    fn set(&self, class: usize, raw: [f32; 4]) {
-        if let Some(place) = self.0.get(class) {
-            for (lane, value) in place.iter().zip(raw) {
-                lane.store(value.to_bits(), Ordering::Relaxed);
+    // Degenerate corners, listed by vertex: they copy the raw result of their vertex's first
+    // listed corner, and are handled with it.
+    let mut degenerate: Vec<(u32, u32)> = Vec::new();
+    if has_degenerate {
+        for (triangle, &flag) in flags.iter().enumerate() {
+            if flag & DEGENERATE != 0 {
+                let first = 3 * triangle;
+                for (k, &class) in corner_class[first..first + 3].iter().enumerate() {
+                    degenerate.push((class, (first + k) as u32));
+                }
             }
         }
+        degenerate.sort_unstable();
     }
 
-    fn get(&self, class: usize) -> [f32; 4] {
-        self.0[class]
-            .each_ref()
-            .map(|lane| f32::from_bits(lane.load(Ordering::Relaxed)))
-    }
+    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count());
+    let (mut parts, mut repairs, touched) = if parallel {
+        let pieces = table.chunks(rayon::current_num_threads() * 16);
+        let results: Vec<(Piece, Copies)> = pieces
+            .into_par_iter()
+            .map(|range| {
+                let mut copies = Copies::default();
+                let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
+                let piece = context.process_classes(range, &flags, &degenerate, &mut put);
+                (piece, copies)
+            })
+            .collect();
+        let mut parts = Vec::with_capacity(results.len() + 1);
+        let mut repairs = Vec::new();
+        let mut touched = Vec::new();
+        for (piece, copies) in results {
+            repairs.extend(piece.repairs);
+            touched.extend(piece.touched);
+            parts.push(copies);
+        }
+        (parts, repairs, touched)
+    } else {
+        let mut copies = Copies::default();
+        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
+        let piece = context.process_classes(0..weld.class_count, &flags, &degenerate, &mut put);
+        (vec![copies], piece.repairs, piece.touched)
+    };
+    // The vertices left for the sequential pass own their input vertices too: new copies.
+    let mut copies = Copies::default();
+    let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
+    context.group_touched_vertices(&touched, &mut flags, &degenerate, &mut repairs, &mut put);
+    parts.push(copies);
+
+    diagnostics.fallback_tangents = FallbackCounts::from_unordered(repairs);
+    diagnostics.set_triangles(triangles);
+    shared.finish(parts, mesh.normals, diagnostics)
 }
 
 /// What one worker hands back besides the tangents it wrote.
@@ -291,7 +270,7 @@ impl Context<'_> {
         &self,
         classes: std::ops::Range<usize>,
         flags: &[u8],
-        first_raw: &FirstRaw,
+        degenerate: &[(u32, u32)],
         put: &mut P,
     ) -> Piece {
         let mut scratch = Scratch::default();
@@ -326,7 +305,7 @@ impl Context<'_> {
                     flags,
                     &batch,
                     offset,
-                    first_raw,
+                    degenerate,
                     &mut piece.repairs,
                     put,
                 ) {
@@ -342,7 +321,13 @@ impl Context<'_> {
                     offset,
                     &mut scratch.eval,
                 );
-                self.finish_class(class, &scratch.eval.raw, first_raw, &mut piece.repairs, put);
+                self.finish_class(
+                    class,
+                    &scratch.eval.raw,
+                    degenerate,
+                    &mut piece.repairs,
+                    put,
+                );
             }
             start = end;
         }
@@ -361,7 +346,7 @@ impl Context<'_> {
         flags: &[u8],
         batch: &Batch,
         offset: usize,
-        first_raw: &FirstRaw,
+        degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
     ) -> bool {
@@ -443,12 +428,12 @@ impl Context<'_> {
             sum = add(sum, scale(column(&batch.s, j), batch.angle[j]));
         }
         let raw = encode(normalize_or_zero(sum), orientation != 0);
-        first_raw.set(class, raw);
         let normal = column(&batch.normal, offset);
         let valid = fallback::is_nearly_unit(normal) && fallback::passes(&raw, normal);
         for &corner in corners {
             self.finish_corner(corner as usize, raw, valid, repairs, put);
         }
+        self.finish_degenerate(class, raw, degenerate, repairs, put);
         true
     }
 
@@ -457,21 +442,22 @@ impl Context<'_> {
         &self,
         class: usize,
         raw: &[[f32; 4]],
-        first_raw: &FirstRaw,
+        degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
     ) {
         let corners = self.table.of(class);
         let Some(&first) = corners.first() else {
+            self.finish_degenerate(class, UNASSIGNED, degenerate, repairs, put);
             return;
         };
-        first_raw.set(class, raw[0]);
         let normal = self.mesh.normals[self.mesh.indices[first as usize] as usize];
         let normal_ok = fallback::is_nearly_unit(normal);
         for (&corner, &tangent) in corners.iter().zip(raw) {
             let ok = normal_ok && fallback::passes(&tangent, normal);
             self.finish_corner(corner as usize, tangent, ok, repairs, put);
         }
+        self.finish_degenerate(class, raw[0], degenerate, repairs, put);
     }
 
     #[inline]
@@ -494,28 +480,25 @@ impl Context<'_> {
         put(corner, tangent);
     }
 
-    /// Degenerate triangles (two corners at one position) take the result of the first listed
-    /// corner of their vertex, as the reference does.
+    /// Degenerate triangles (two corners at one position) take the raw result of the first
+    /// listed corner of their vertex, `first_raw`, as the reference does.
     fn finish_degenerate<P: FnMut(usize, [f32; 4])>(
         &self,
-        flags: &[u8],
-        first_raw: &FirstRaw,
+        class: usize,
+        first_raw: [f32; 4],
+        degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
     ) {
-        for (triangle, &flag) in flags.iter().enumerate() {
-            if flag & DEGENERATE == 0 {
-                continue;
+        if degenerate.is_empty() {
+            return;
+        }
+        let start = degenerate.partition_point(|&(c, _)| (c as usize) < class);
+        for &(c, corner) in &degenerate[start..] {
+            if c as usize != class {
+                break;
             }
-            for corner in 3 * triangle..3 * triangle + 3 {
-                let class = self.corner_class[corner];
-                let raw = if class != NONE && !self.table.of(class as usize).is_empty() {
-                    first_raw.get(class as usize)
-                } else {
-                    UNASSIGNED
-                };
-                self.finish_corner(corner, raw, false, repairs, put);
-            }
+            self.finish_corner(corner as usize, first_raw, false, repairs, put);
         }
     }
 
@@ -593,7 +576,7 @@ impl Context<'_> {
         &self,
         touched: &[u32],
         flags: &mut [u8],
-        first_raw: &FirstRaw,
+        degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
     ) {
@@ -661,7 +644,7 @@ impl Context<'_> {
             let labels = &labels[link_offsets[k]..link_offsets[k + 1]];
             batch.compute(self, class..class + 1);
             self.evaluate(class, flags, labels, &batch, 0, &mut scratch.eval);
-            self.finish_class(class, &scratch.eval.raw, first_raw, repairs, put);
+            self.finish_class(class, &scratch.eval.raw, degenerate, repairs, put);
         }
     }
 

@@ -125,16 +125,35 @@ pub struct MeshInput<'a> {
 }
 
 /// What [`generate`] returns.
+///
+/// The tangents come as a vertex buffer: [`SplitPlan::vertex_tangents`], one per output vertex,
+/// with [`SplitPlan::indices`] giving every corner its vertex. That is what a scene writer needs,
+/// and it is a quarter of the size of one tangent per corner; [`Tangents::corner_tangent`] and
+/// [`Tangents::corner_tangents`] give the per-corner view.
 #[derive(Clone, Debug)]
 pub struct Tangents {
-    /// One tangent per corner (per index, or per vertex when the input is not indexed), in input
-    /// order: `xyz` unit and orthogonal to the normal, `w` = ±1.
-    pub corner_tangents: Vec<[f32; 4]>,
     /// How to rebuild the vertex buffer so that every vertex has one tangent.
     pub split: SplitPlan,
     /// Generated normals, one per *output* vertex of [`Tangents::split`], when the input had none.
     pub normals: Option<Vec<[f32; 3]>>,
     pub diagnostics: Diagnostics,
+}
+
+impl Tangents {
+    /// The tangent of one corner (index position, or vertex when the input is not indexed):
+    /// `xyz` unit and orthogonal to the normal, `w` = ±1.
+    pub fn corner_tangent(&self, corner: usize) -> [f32; 4] {
+        self.split.vertex_tangents[self.split.indices[corner] as usize]
+    }
+
+    /// The tangent of every corner, in input order.
+    pub fn corner_tangents(&self) -> Vec<[f32; 4]> {
+        self.split
+            .indices
+            .iter()
+            .map(|&v| self.split.vertex_tangents[v as usize])
+            .collect()
+    }
 }
 
 /// Input the core cannot work with at all. Anything softer (degenerate or non-finite data) is
@@ -256,13 +275,14 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     };
     // Axis tangents have no UV handedness to convert.
     let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
-    let corner_tangents = match options.method {
-        Method::MikkTSpace => {
-            let out = mikktspace::generate(&mesh, options.parallel, flip_w, &triangle_check);
-            diagnostics.fallback_tangents = out.fallbacks;
-            diagnostics.set_triangles(out.triangles);
-            out.corners
-        }
+    let mut split = match options.method {
+        Method::MikkTSpace => mikktspace::generate(
+            &mesh,
+            options.parallel,
+            flip_w,
+            &triangle_check,
+            &mut diagnostics,
+        ),
         Method::Fast | Method::Axis => {
             diagnostics.set_triangles(diagnostics::analyze_triangles(
                 &mesh,
@@ -279,17 +299,16 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
                     t[3] = -t[3];
                 }
             }
-            corners
+            split::plan(
+                mesh.indices,
+                mesh.vertex_count(),
+                &corners,
+                mesh.normals,
+                &mut diagnostics,
+            )
         }
     };
 
-    let mut split = split::plan(
-        mesh.indices,
-        mesh.vertex_count(),
-        &corner_tangents,
-        mesh.normals,
-        &mut diagnostics,
-    );
     let mut out_normals = None;
     if let Some(generated) = &generated {
         // Express the plan in terms of the caller's vertices, and hand back the normals.
@@ -309,7 +328,6 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     }
 
     Ok(Tangents {
-        corner_tangents,
         split,
         normals: out_normals,
         diagnostics,

@@ -3,8 +3,9 @@
 //!
 //! The plan is expressed as indices into the caller's vertices, so that any other attribute (skin
 //! weights, colours, morph targets) can be duplicated the same way. Original vertices keep their
-//! index; duplicates are appended after them in order of first use. Triangle order and corner
-//! order are unchanged.
+//! index; duplicates are appended after them, in an order that depends only on the mesh (never on
+//! the number of threads): by first use here, by welded vertex where MikkTSpace builds the plan
+//! as it goes (see `output.rs`). Triangle order and corner order are unchanged.
 
 use super::diagnostics::{Diagnostics, Tally};
 use super::math::{any_orthogonal, unit};
