@@ -1,8 +1,11 @@
-//! Scenes in and out: glTF, GLB and (later) OBJ files turned into primitives the tangent core can
-//! take, and written back with only the members tspace changed.
+//! Scenes in and out: glTF, GLB and OBJ files turned into primitives the tangent core can take,
+//! and written back with only the members tspace changed. `uri` decides what a glTF's URIs may
+//! name (data, caller-supplied parts, or on the command line a file beside it); `obj` reads
+//! Wavefront OBJ and MTL.
 //!
 //! Everything here reads untrusted bytes. Nothing panics on them, every allocation is bounded by
 //! the bytes actually present or by an explicit limit, and every recursion has a depth limit.
 
 pub mod gltf;
+pub mod obj;
 pub mod uri;

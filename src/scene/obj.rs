@@ -1,0 +1,2064 @@
+//! Wavefront OBJ and MTL, read from memory into plain arrays and triangle lists.
+//!
+//! OBJ is a line format with many dialects. The reader treats the input as ASCII tokens separated
+//! by ASCII whitespace, so UTF-8 and Latin-1 files read alike; names (`o`, `g`, `usemtl`,
+//! `mtllib`, texture paths) that are not UTF-8 are kept lossily (U+FFFD). A leading UTF-8 byte
+//! order mark is skipped. Decisions where the format is loose:
+//!
+//! - **Comments** start at a `#` at the start of a line or after whitespace (`v 1 2 3 # note`);
+//!   a `#` inside a token (`usemtl mat#2`) is part of it.
+//! - **Line continuation**: a `\` ending a line (trailing whitespace aside) joins the next one;
+//!   errors report the first physical line of the joined line.
+//! - **Indices** are 1-based; negative ones count back from the number of elements defined so far
+//!   (`-1` is the last). Both must refer to an element already defined: `0`, and anything out of
+//!   range at that point, is an error with the line number. (The specification has references
+//!   follow definitions; accepting forward references would cost a second pass and give no line.)
+//! - **Faces with UVs or normals on some corners only** (`f 1/1 2 3/3`): the face keeps its
+//!   positions and loses that attribute on every corner, counted in
+//!   [`Warnings::faces_with_partial_uvs`] / [`Warnings::faces_with_partial_normals`]. Dropping is
+//!   safer than guessing which UV a bare corner meant, and refusing the file would lose the mesh
+//!   for a flaw the tangent core can work around (normals are generated, and a face without UVs
+//!   gets no tangent from them). Different faces may freely differ in what they carry.
+//! - **Vertex colours** (`v x y z r g b`, also with a 7th value, alpha, which is ignored): when
+//!   any `v` has a colour, [`Obj::colors`] has one per position and positions without one are
+//!   white, counted in [`Warnings::vertices_without_color`]. `v x y z w` (a rational weight) is
+//!   read as `x y z`.
+//! - **Polygons** become triangles by ear clipping in the polygon's best-fit plane (its Newell
+//!   normal), so concave polygons come out right; a convex polygon gives exactly the fan from its
+//!   first corner. A polygon with no usable plane (collinear, NaN) or one that is not simple
+//!   becomes a fan, or partly one, and is counted in [`Warnings::polygons_fanned`]. So is a
+//!   polygon whose ear search exceeds its work budget (proportional to its corner count), which
+//!   keeps the total work linear in the input whatever it holds; in practice concave polygons of
+//!   up to about 2000 corners triangulate exactly (the search is quadratic, without earcut's
+//!   spatial index). The triangles of one face are
+//!   consecutive and keep the face's winding. Faces with fewer than 3 corners are skipped and
+//!   counted.
+//! - **Ignored**: `l` and `p` (counted), free-form geometry and other statements tspace cannot use
+//!   (counted in [`Warnings::unsupported_statements`], with the first few keywords named).
+//!
+//! Memory is bounded by the input's length and by [`Limits`]: each element, corner and triangle
+//! comes from bytes actually present, and the counts are checked before anything is added.
+
+use std::borrow::Cow;
+use std::fmt;
+
+/// Caps on what one file may hold; exceeding one is an error, never a truncation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// The most `v`, `vt` or `vn` statements (each counted separately).
+    pub max_vertices: usize,
+    /// The most triangles, after triangulating polygons.
+    pub max_triangles: usize,
+    /// The most corners in one face.
+    pub max_polygon_corners: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_vertices: 1 << 24,
+            max_triangles: 1 << 24,
+            max_polygon_corners: 1 << 16,
+        }
+    }
+}
+
+/// One triangle corner: 0-based indices into [`Obj`]'s arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Corner {
+    pub position: u32,
+    pub uv: Option<u32>,
+    pub normal: Option<u32>,
+}
+
+/// A run of faces sharing object, groups and material, in file order. A change of any of them
+/// starts a new run; runs are not merged, so a material used twice gives two runs. Smoothing
+/// groups change too often to split runs (exporters switch them every few faces), so they are
+/// kept per triangle.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FaceGroup {
+    /// The last `o` name before these faces.
+    pub object: Option<String>,
+    /// The names of the last `g` statement (it may name several).
+    pub groups: Vec<String>,
+    /// The last `usemtl` name.
+    pub material: Option<String>,
+    pub triangles: Vec<[Corner; 3]>,
+    /// The smoothing group (`s`) of each triangle; 0 is `s off` (and the default).
+    pub smoothing: Vec<u32>,
+}
+
+/// What the reader skipped or repaired. None of it stops the file from being read.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Warnings {
+    pub unsupported_statements: usize,
+    /// The first [`MAX_NAMED_KEYWORDS`] distinct unsupported keywords, for messages.
+    pub unsupported_keywords: Vec<String>,
+    pub faces_with_partial_uvs: usize,
+    pub faces_with_partial_normals: usize,
+    /// Faces with fewer than 3 corners, skipped.
+    pub faces_too_few_corners: usize,
+    /// Polygons triangulated wholly or partly as a fan (see the module documentation).
+    pub polygons_fanned: usize,
+    /// `l` statements, skipped.
+    pub lines_skipped: usize,
+    /// `p` statements, skipped.
+    pub points_skipped: usize,
+    /// Positions given the default white because other positions had a colour.
+    pub vertices_without_color: usize,
+    /// `v` statements with 5 or more than 7 values, read as their first 3.
+    pub vertices_with_odd_value_count: usize,
+}
+
+/// How many distinct unsupported keywords [`Warnings`] names.
+pub const MAX_NAMED_KEYWORDS: usize = 8;
+
+impl Warnings {
+    fn unsupported(&mut self, keyword: &[u8]) {
+        self.unsupported_statements += 1;
+        let keyword = String::from_utf8_lossy(keyword);
+        if self.unsupported_keywords.len() < MAX_NAMED_KEYWORDS
+            && !self.unsupported_keywords.iter().any(|k| *k == keyword)
+        {
+            self.unsupported_keywords.push(keyword.into_owned());
+        }
+    }
+}
+
+/// A parsed OBJ file.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Obj {
+    pub positions: Vec<[f32; 3]>,
+    /// One linear RGB colour per position, if any `v` had one (see the module documentation).
+    pub colors: Option<Vec<[f32; 3]>>,
+    /// `vt` u and v (a third coordinate is dropped). OBJ's V axis points up (origin at the
+    /// bottom left), the reverse of glTF's; the values are as written.
+    pub uvs: Vec<[f32; 2]>,
+    /// `vn`, as written (not normalized).
+    pub normals: Vec<[f32; 3]>,
+    pub groups: Vec<FaceGroup>,
+    /// `mtllib` names, in order, as written.
+    pub material_libraries: Vec<String>,
+    pub warnings: Warnings,
+}
+
+impl Obj {
+    pub fn triangle_count(&self) -> usize {
+        self.groups.iter().map(|g| g.triangles.len()).sum()
+    }
+}
+
+/// An error, with the (first physical) line it was found on, counted from 1.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjError {
+    pub line: usize,
+    pub kind: ObjErrorKind,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum ObjErrorKind {
+    /// A value that should be a number is not.
+    BadNumber { statement: String, token: String },
+    TooFewValues {
+        statement: String,
+        expected: usize,
+        found: usize,
+    },
+    /// A face corner that is not `v`, `v/vt`, `v//vn` or `v/vt/vn` with integer indices.
+    BadCorner { token: String },
+    /// Index 0, which OBJ's 1-based indices do not have.
+    ZeroIndex { what: &'static str },
+    /// An index outside the `count` elements defined so far.
+    IndexOutOfRange {
+        what: &'static str,
+        index: i64,
+        count: usize,
+    },
+    /// More `what` than [`Limits`] allows.
+    LimitExceeded { what: &'static str, limit: usize },
+}
+
+impl fmt::Display for ObjErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ObjErrorKind::BadNumber { statement, token } => {
+                write!(f, "{statement:?}: {token:?} is not a number")
+            }
+            ObjErrorKind::TooFewValues {
+                statement,
+                expected,
+                found,
+            } => write!(
+                f,
+                "{statement:?} needs at least {expected} value{}, found {found}",
+                if *expected == 1 { "" } else { "s" }
+            ),
+            ObjErrorKind::BadCorner { token } => write!(
+                f,
+                "face corner {token:?} is not v, v/vt, v//vn or v/vt/vn with integer indices"
+            ),
+            ObjErrorKind::ZeroIndex { what } => {
+                write!(
+                    f,
+                    "{what} index 0: OBJ indices start at 1 (or count back from -1)"
+                )
+            }
+            ObjErrorKind::IndexOutOfRange { what, index, count } => write!(
+                f,
+                "{what} index {index} is out of range: {count} {what}{} defined so far",
+                if *count == 1 { " is" } else { "s are" }
+            ),
+            ObjErrorKind::LimitExceeded { what, limit } => {
+                write!(f, "more than {limit} {what}, the limit")
+            }
+        }
+    }
+}
+
+impl fmt::Display for ObjError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "line {}: {}", self.line, self.kind)
+    }
+}
+
+impl std::error::Error for ObjError {}
+
+fn error(line: usize, kind: ObjErrorKind) -> ObjError {
+    ObjError { line, kind }
+}
+
+fn lossy(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Logical lines: physical lines with `\r\n` or `\n` endings, joined at continuations, comments
+/// stripped, with the number of their first physical line.
+struct Lines<'a> {
+    rest: &'a [u8],
+    next_line: usize,
+}
+
+impl<'a> Lines<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        Lines {
+            rest: bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes),
+            next_line: 1,
+        }
+    }
+
+    fn physical(&mut self) -> Option<&'a [u8]> {
+        if self.rest.is_empty() {
+            return None;
+        }
+        let (line, rest) = match self.rest.iter().position(|&b| b == b'\n') {
+            Some(i) => (&self.rest[..i], &self.rest[i + 1..]),
+            None => (self.rest, &[][..]),
+        };
+        self.rest = rest;
+        self.next_line += 1;
+        Some(line.strip_suffix(b"\r").unwrap_or(line))
+    }
+}
+
+/// `line` without a trailing `\` (and the whitespace after it), if it has one.
+fn continued(line: &[u8]) -> Option<&[u8]> {
+    line.trim_ascii_end().strip_suffix(b"\\")
+}
+
+/// `line` up to its comment, if any.
+fn strip_comment(line: &[u8]) -> &[u8] {
+    let mut previous_space = true;
+    for (i, &b) in line.iter().enumerate() {
+        if b == b'#' && previous_space {
+            return &line[..i];
+        }
+        previous_space = b.is_ascii_whitespace();
+    }
+    line
+}
+
+impl<'a> Iterator for Lines<'a> {
+    type Item = (usize, Cow<'a, [u8]>);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let number = self.next_line;
+        let first = self.physical()?;
+        let Some(mut head) = continued(first) else {
+            return Some((number, Cow::Borrowed(strip_comment(first))));
+        };
+        // Joined lines are at most the input's length.
+        let mut joined = Vec::new();
+        loop {
+            joined.extend_from_slice(head);
+            joined.push(b' ');
+            let Some(next) = self.physical() else { break };
+            match continued(next) {
+                Some(h) => head = h,
+                None => {
+                    joined.extend_from_slice(next);
+                    break;
+                }
+            }
+        }
+        let end = strip_comment(&joined).len();
+        joined.truncate(end);
+        Some((number, Cow::Owned(joined)))
+    }
+}
+
+/// A statement: its keyword, its tokens, and the text after the keyword (for names with spaces).
+struct Statement<'l> {
+    keyword: &'l [u8],
+    args: Vec<&'l [u8]>,
+    rest: &'l [u8],
+}
+
+fn split(line: &[u8]) -> Option<Statement<'_>> {
+    let line = line.trim_ascii();
+    let end = line
+        .iter()
+        .position(|b| b.is_ascii_whitespace())
+        .unwrap_or(line.len());
+    if end == 0 {
+        return None;
+    }
+    let rest = line[end..].trim_ascii();
+    Some(Statement {
+        keyword: &line[..end],
+        args: rest
+            .split(|b| b.is_ascii_whitespace())
+            .filter(|t| !t.is_empty())
+            .collect(),
+        rest,
+    })
+}
+
+/// Parses a float: decimal and exponent forms, `inf`, `infinity` and `nan` in any case and with
+/// either sign (real exporters write all of them; the tangent core copes with the values).
+fn parse_f32(token: &[u8]) -> Option<f32> {
+    let text = std::str::from_utf8(token).ok()?;
+    if let Ok(v) = text.parse::<f32>() {
+        return Some(v);
+    }
+    let unsigned = text.trim_start_matches(['+', '-']);
+    (text.len() - unsigned.len() == 1 && unsigned.eq_ignore_ascii_case("nan")).then_some(f32::NAN)
+}
+
+fn numbers<const N: usize>(
+    statement: &Statement<'_>,
+    line: usize,
+    required: usize,
+    defaults: [f32; N],
+) -> Result<[f32; N], ObjError> {
+    if statement.args.len() < required {
+        return Err(error(
+            line,
+            ObjErrorKind::TooFewValues {
+                statement: lossy(statement.keyword),
+                expected: required,
+                found: statement.args.len(),
+            },
+        ));
+    }
+    let mut out = defaults;
+    for (slot, token) in out.iter_mut().zip(&statement.args) {
+        *slot = parse_f32(token).ok_or_else(|| {
+            error(
+                line,
+                ObjErrorKind::BadNumber {
+                    statement: lossy(statement.keyword),
+                    token: lossy(token),
+                },
+            )
+        })?;
+    }
+    Ok(out)
+}
+
+fn check_limit(
+    count: usize,
+    limit: usize,
+    what: &'static str,
+    line: usize,
+) -> Result<(), ObjError> {
+    if count >= limit {
+        return Err(error(line, ObjErrorKind::LimitExceeded { what, limit }));
+    }
+    Ok(())
+}
+
+/// Resolves a 1-based or negative OBJ index against the `count` elements defined so far.
+fn resolve(token: &[u8], what: &'static str, count: usize, line: usize) -> Result<u32, ObjError> {
+    let bad = || {
+        error(
+            line,
+            ObjErrorKind::BadCorner {
+                token: lossy(token),
+            },
+        )
+    };
+    let index: i64 = std::str::from_utf8(token)
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .ok_or_else(bad)?;
+    let out_of_range = || error(line, ObjErrorKind::IndexOutOfRange { what, index, count });
+    let resolved = match index {
+        0 => return Err(error(line, ObjErrorKind::ZeroIndex { what })),
+        i if i > 0 => usize::try_from(i - 1).map_err(|_| out_of_range())?,
+        i => count
+            .checked_sub(usize::try_from(i.unsigned_abs()).map_err(|_| out_of_range())?)
+            .ok_or_else(out_of_range)?,
+    };
+    if resolved >= count {
+        return Err(out_of_range());
+    }
+    // Counts are capped by `Limits`, whose values could exceed u32 only by a caller's choice.
+    u32::try_from(resolved).map_err(|_| out_of_range())
+}
+
+/// The state that decides which [`FaceGroup`] a face joins.
+#[derive(Clone, Default, PartialEq)]
+struct GroupKey {
+    object: Option<String>,
+    groups: Vec<String>,
+    material: Option<String>,
+}
+
+struct Reader<'l> {
+    limits: &'l Limits,
+    obj: Obj,
+    key: GroupKey,
+    smoothing: u32,
+    /// Whether the last group in `obj.groups` still matches `key`.
+    group_current: bool,
+    triangles: usize,
+    // Scratch buffers reused across faces.
+    corners: Vec<Corner>,
+    has_uv: Vec<bool>,
+    polygon: Vec<[f32; 3]>,
+    local: Vec<[usize; 3]>,
+}
+
+/// Reads an OBJ file (see the module documentation for the dialect and the decisions).
+pub fn parse_obj(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
+    let mut reader = Reader {
+        limits,
+        obj: Obj::default(),
+        key: GroupKey::default(),
+        smoothing: 0,
+        group_current: false,
+        triangles: 0,
+        corners: Vec::new(),
+        has_uv: Vec::new(),
+        polygon: Vec::new(),
+        local: Vec::new(),
+    };
+    for (line, text) in Lines::new(bytes) {
+        if let Some(statement) = split(&text) {
+            reader.statement(&statement, line)?;
+        }
+    }
+    let Reader { mut obj, .. } = reader;
+    obj.groups.retain(|g| !g.triangles.is_empty());
+    Ok(obj)
+}
+
+impl Reader<'_> {
+    fn statement(&mut self, s: &Statement<'_>, line: usize) -> Result<(), ObjError> {
+        let max_vertices = self.limits.max_vertices;
+        match s.keyword {
+            b"v" => {
+                check_limit(self.obj.positions.len(), max_vertices, "vertices", line)?;
+                let values = numbers(s, line, 3, [0.0; 3])?;
+                self.vertex(values, s, line)?;
+            }
+            b"vt" => {
+                check_limit(
+                    self.obj.uvs.len(),
+                    max_vertices,
+                    "texture coordinates",
+                    line,
+                )?;
+                let [u, v] = numbers(s, line, 1, [0.0; 2])?;
+                self.obj.uvs.push([u, v]);
+            }
+            b"vn" => {
+                check_limit(self.obj.normals.len(), max_vertices, "normals", line)?;
+                self.obj.normals.push(numbers(s, line, 3, [0.0; 3])?);
+            }
+            b"f" | b"fo" => self.face(s, line)?,
+            b"l" => self.obj.warnings.lines_skipped += 1,
+            b"p" => self.obj.warnings.points_skipped += 1,
+            b"o" => {
+                self.set_key(|k| k.object = (!s.rest.is_empty()).then(|| lossy(s.rest)));
+            }
+            b"g" => {
+                let groups = s.args.iter().map(|g| lossy(g)).collect();
+                self.set_key(|k| k.groups = groups);
+            }
+            b"usemtl" => {
+                self.set_key(|k| k.material = (!s.rest.is_empty()).then(|| lossy(s.rest)));
+            }
+            b"s" => {
+                let smoothing = match s.args.first() {
+                    None => 0,
+                    Some(t) if t.eq_ignore_ascii_case(b"off") => 0,
+                    Some(t) => std::str::from_utf8(t)
+                        .ok()
+                        .and_then(|t| t.parse().ok())
+                        .ok_or_else(|| {
+                            error(
+                                line,
+                                ObjErrorKind::BadNumber {
+                                    statement: "s".into(),
+                                    token: lossy(t),
+                                },
+                            )
+                        })?,
+                };
+                self.smoothing = smoothing;
+            }
+            b"mtllib" => self.mtllib(s),
+            keyword => self.obj.warnings.unsupported(keyword),
+        }
+        Ok(())
+    }
+
+    fn vertex(&mut self, xyz: [f32; 3], s: &Statement<'_>, line: usize) -> Result<(), ObjError> {
+        let obj = &mut self.obj;
+        let color = match s.args.len() {
+            3 | 4 => None,
+            6 | 7 => {
+                let rest = Statement {
+                    keyword: s.keyword,
+                    args: s.args[3..6].to_vec(),
+                    rest: s.rest,
+                };
+                Some(numbers(&rest, line, 3, [0.0; 3])?)
+            }
+            _ => {
+                obj.warnings.vertices_with_odd_value_count += 1;
+                None
+            }
+        };
+        match (&mut obj.colors, color) {
+            (Some(colors), color) => {
+                if color.is_none() {
+                    obj.warnings.vertices_without_color += 1;
+                }
+                colors.push(color.unwrap_or([1.0; 3]));
+            }
+            (None, Some(color)) => {
+                // The first coloured vertex: the ones before it are white.
+                let before = obj.positions.len();
+                obj.warnings.vertices_without_color += before;
+                let mut colors = vec![[1.0; 3]; before];
+                colors.push(color);
+                obj.colors = Some(colors);
+            }
+            (None, None) => {}
+        }
+        obj.positions.push(xyz);
+        Ok(())
+    }
+
+    fn mtllib(&mut self, s: &Statement<'_>) {
+        if s.rest.is_empty() {
+            return;
+        }
+        // The specification separates several libraries by spaces, but exporters also write one
+        // name containing spaces. Split only when every token is itself a `.mtl` name.
+        let all_mtl = s.args.len() > 1
+            && s.args
+                .iter()
+                .all(|t| t.len() > 4 && t[t.len() - 4..].eq_ignore_ascii_case(b".mtl"));
+        if all_mtl {
+            self.obj
+                .material_libraries
+                .extend(s.args.iter().map(|t| lossy(t)));
+        } else {
+            self.obj.material_libraries.push(lossy(s.rest));
+        }
+    }
+
+    fn set_key(&mut self, change: impl FnOnce(&mut GroupKey)) {
+        change(&mut self.key);
+        self.group_current = false;
+    }
+
+    fn current_group(&mut self) -> &mut FaceGroup {
+        let groups = &mut self.obj.groups;
+        let reusable = groups.last().is_some_and(|g| {
+            g.object == self.key.object
+                && g.groups == self.key.groups
+                && g.material == self.key.material
+        });
+        if !(self.group_current || reusable) {
+            let key = self.key.clone();
+            groups.push(FaceGroup {
+                object: key.object,
+                groups: key.groups,
+                material: key.material,
+                triangles: Vec::new(),
+                smoothing: Vec::new(),
+            });
+        }
+        self.group_current = true;
+        // Never empty here: a group was pushed above, or the last one was reused.
+        let last = groups.len() - 1;
+        &mut groups[last]
+    }
+
+    fn face(&mut self, s: &Statement<'_>, line: usize) -> Result<(), ObjError> {
+        let limit = self.limits.max_polygon_corners;
+        if s.args.len() > limit {
+            return Err(error(
+                line,
+                ObjErrorKind::LimitExceeded {
+                    what: "corners in one face",
+                    limit,
+                },
+            ));
+        }
+        self.corners.clear();
+        self.has_uv.clear();
+        let (mut uvs, mut normals) = (0, 0);
+        for token in &s.args {
+            let bad = || {
+                error(
+                    line,
+                    ObjErrorKind::BadCorner {
+                        token: lossy(token),
+                    },
+                )
+            };
+            let mut parts = token.split(|&b| b == b'/');
+            let position = parts.next().filter(|p| !p.is_empty()).ok_or_else(bad)?;
+            let uv = parts.next().filter(|p| !p.is_empty());
+            let normal = parts.next().filter(|p| !p.is_empty());
+            if parts.next().is_some() {
+                return Err(bad());
+            }
+            let corner = Corner {
+                position: resolve(position, "position", self.obj.positions.len(), line)?,
+                uv: uv
+                    .map(|t| resolve(t, "texture coordinate", self.obj.uvs.len(), line))
+                    .transpose()?,
+                normal: normal
+                    .map(|t| resolve(t, "normal", self.obj.normals.len(), line))
+                    .transpose()?,
+            };
+            uvs += usize::from(corner.uv.is_some());
+            normals += usize::from(corner.normal.is_some());
+            self.corners.push(corner);
+        }
+        let n = self.corners.len();
+        if n < 3 {
+            self.obj.warnings.faces_too_few_corners += 1;
+            return Ok(());
+        }
+        if uvs != 0 && uvs != n {
+            self.obj.warnings.faces_with_partial_uvs += 1;
+            self.corners.iter_mut().for_each(|c| c.uv = None);
+        }
+        if normals != 0 && normals != n {
+            self.obj.warnings.faces_with_partial_normals += 1;
+            self.corners.iter_mut().for_each(|c| c.normal = None);
+        }
+        let added = n - 2;
+        if self.triangles + added > self.limits.max_triangles {
+            return Err(error(
+                line,
+                ObjErrorKind::LimitExceeded {
+                    what: "triangles",
+                    limit: self.limits.max_triangles,
+                },
+            ));
+        }
+        self.triangles += added;
+        self.local.clear();
+        if n == 3 {
+            self.local.push([0, 1, 2]);
+        } else {
+            self.polygon.clear();
+            let positions = &self.obj.positions;
+            // Indices were resolved against `positions` above.
+            self.polygon.extend(self.corners.iter().map(|c| {
+                positions
+                    .get(c.position as usize)
+                    .copied()
+                    .unwrap_or_default()
+            }));
+            if triangulate(&self.polygon, &mut self.local) == Triangulation::Fan {
+                self.obj.warnings.polygons_fanned += 1;
+            }
+        }
+        let corners = std::mem::take(&mut self.corners);
+        let local = std::mem::take(&mut self.local);
+        let smoothing = self.smoothing;
+        let group = self.current_group();
+        group
+            .triangles
+            .extend(local.iter().map(|t| t.map(|i| corners[i])));
+        group
+            .smoothing
+            .extend(std::iter::repeat_n(smoothing, local.len()));
+        self.corners = corners;
+        self.local = local;
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Triangulation {
+    /// Every triangle is an ear of a simple polygon.
+    Ears,
+    /// Some or all triangles come from the fallback.
+    Fan,
+}
+
+/// Point-in-triangle tests per corner of a polygon that the ear search may spend before it falls
+/// back to a fan. Enough for every convex polygon up to this many corners and for concave ones
+/// well beyond it, while keeping a file's total work linear in its corner count.
+const EAR_BUDGET_PER_CORNER: usize = 1024;
+
+/// Twice the signed area of the triangle `a b c` (positive when counter-clockwise).
+fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+/// The polygon in its best-fit plane, counter-clockwise, or `None` when it has no plane.
+fn project(polygon: &[[f32; 3]]) -> Option<Vec<[f64; 2]>> {
+    let origin = polygon.first()?.map(f64::from);
+    let relative = |p: &[f32; 3]| [0, 1, 2].map(|k| f64::from(p[k]) - origin[k]);
+    // Newell's normal: the sum of the edges' contributions to the projected areas.
+    let mut normal = [0.0f64; 3];
+    for (i, p) in polygon.iter().enumerate() {
+        let a = relative(p);
+        let b = relative(&polygon[(i + 1) % polygon.len()]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    let length = normal.iter().map(|c| c * c).sum::<f64>().sqrt();
+    if !(length.is_finite() && length > 0.0) {
+        return None;
+    }
+    let n = normal.map(|c| c / length);
+    // u: perpendicular to n and to the world axis least aligned with it; v = n × u, so that
+    // (u, v, n) is right-handed and the polygon, wound counter-clockwise about n, stays so.
+    let axis = if n[0].abs() <= n[1].abs() && n[0].abs() <= n[2].abs() {
+        [1.0, 0.0, 0.0]
+    } else if n[1].abs() <= n[2].abs() {
+        [0.0, 1.0, 0.0]
+    } else {
+        [0.0, 0.0, 1.0]
+    };
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let u = cross(axis, n);
+    let u_length = u.iter().map(|c| c * c).sum::<f64>().sqrt();
+    let u = u.map(|c| c / u_length);
+    let v = cross(n, u);
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    Some(
+        polygon
+            .iter()
+            .map(|p| {
+                let r = relative(p);
+                [dot(r, u), dot(r, v)]
+            })
+            .collect(),
+    )
+}
+
+/// Appends triangles (as indices into `polygon`) covering the polygon, `polygon.len() - 2` of
+/// them, each wound like the polygon. See the module documentation.
+fn triangulate(polygon: &[[f32; 3]], out: &mut Vec<[usize; 3]>) -> Triangulation {
+    let n = polygon.len();
+    let fan = |from: usize, out: &mut Vec<[usize; 3]>| {
+        out.extend((from + 1..n - 1).map(|i| [from, i, i + 1]));
+    };
+    if n < 3 {
+        return Triangulation::Ears;
+    }
+    let Some(points) = project(polygon) else {
+        fan(0, out);
+        return Triangulation::Fan;
+    };
+    if points.iter().flatten().any(|c| !c.is_finite()) {
+        fan(0, out);
+        return Triangulation::Fan;
+    }
+    // A circular doubly linked list of the corners not yet clipped.
+    let mut next: Vec<usize> = (1..=n).map(|i| i % n).collect();
+    let mut prev: Vec<usize> = (0..n).map(|i| (i + n - 1) % n).collect();
+    let mut remaining = n;
+    let mut budget = EAR_BUDGET_PER_CORNER.saturating_mul(n);
+    let mut result = Triangulation::Ears;
+    // Starting at corner 1 makes a convex polygon's ears exactly the fan from corner 0.
+    let mut i = 1;
+    let clip = |i: usize, next: &mut Vec<usize>, prev: &mut Vec<usize>, out: &mut Vec<_>| {
+        let (a, c) = (prev[i], next[i]);
+        out.push([a, i, c]);
+        next[a] = c;
+        prev[c] = a;
+        c
+    };
+    while remaining > 3 {
+        let mut found = None;
+        let mut candidate = i;
+        for _ in 0..remaining {
+            let (a, c) = (prev[candidate], next[candidate]);
+            let (pa, pb, pc) = (points[a], points[candidate], points[c]);
+            if orient(pa, pb, pc) > 0.0 {
+                let mut ear = true;
+                let mut j = next[c];
+                while j != a {
+                    if budget == 0 {
+                        break;
+                    }
+                    budget -= 1;
+                    let p = points[j];
+                    // Corners at a vertex of the triangle (a polygon's "bridge" to a hole
+                    // visits two points twice) cannot be inside it.
+                    if p != pa
+                        && p != pb
+                        && p != pc
+                        && orient(pa, pb, p) >= 0.0
+                        && orient(pb, pc, p) >= 0.0
+                        && orient(pc, pa, p) >= 0.0
+                    {
+                        ear = false;
+                        break;
+                    }
+                    j = next[j];
+                }
+                if ear && budget > 0 {
+                    found = Some(candidate);
+                    break;
+                }
+            }
+            if budget == 0 {
+                break;
+            }
+            candidate = next[candidate];
+        }
+        let ear = match found {
+            Some(ear) => ear,
+            None => {
+                // Not simple, or out of budget: clip any convex corner, else fan what is left.
+                result = Triangulation::Fan;
+                let mut convex = None;
+                let mut c = i;
+                for _ in 0..remaining {
+                    if orient(points[prev[c]], points[c], points[next[c]]) > 0.0 {
+                        convex = Some(c);
+                        break;
+                    }
+                    c = next[c];
+                }
+                match convex {
+                    Some(c) if budget > 0 => c,
+                    _ => {
+                        let start = prev[i];
+                        let mut a = i;
+                        for _ in 0..remaining - 2 {
+                            let b = next[a];
+                            out.push([start, a, b]);
+                            a = b;
+                        }
+                        return result;
+                    }
+                }
+            }
+        };
+        i = clip(ear, &mut next, &mut prev, out);
+        remaining -= 1;
+    }
+    out.push([prev[i], i, next[i]]);
+    result
+}
+
+/// A texture reference from an MTL file: the path as written, with the options tspace uses.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Texture {
+    /// The file name, exactly as written after the options (spaces kept).
+    pub path: String,
+    /// `-bm`: the bump multiplier (normal-map strength).
+    pub bump_multiplier: Option<f32>,
+    /// `-o u v w`: the texture offset (missing values are 0).
+    pub offset: Option<[f32; 3]>,
+    /// `-s u v w`: the texture scale (missing values are 1).
+    pub scale: Option<[f32; 3]>,
+}
+
+/// One `newmtl` block. Colours are linear RGB as written; absent statements are `None`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Material {
+    pub name: String,
+    /// `Kd`.
+    pub diffuse: Option<[f32; 3]>,
+    /// `Ks`.
+    pub specular: Option<[f32; 3]>,
+    /// `Ns`.
+    pub shininess: Option<f32>,
+    /// `d`, or `1 - Tr`; the later statement wins.
+    pub dissolve: Option<f32>,
+    /// `Ke`.
+    pub emissive: Option<[f32; 3]>,
+    /// `Pr` (the PBR extension).
+    pub roughness: Option<f32>,
+    /// `Pm` (the PBR extension).
+    pub metallic: Option<f32>,
+    /// `map_Kd`.
+    pub diffuse_map: Option<Texture>,
+    /// `map_Ks`.
+    pub specular_map: Option<Texture>,
+    /// `map_d`.
+    pub dissolve_map: Option<Texture>,
+    /// `map_Bump`, `map_bump` or `bump`: in practice usually a tangent-space normal map.
+    pub bump_map: Option<Texture>,
+    /// `norm` (the PBR extension): a tangent-space normal map.
+    pub normal_map: Option<Texture>,
+}
+
+/// What the MTL reader skipped.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct MtlWarnings {
+    pub unsupported_statements: usize,
+    /// The first [`MAX_NAMED_KEYWORDS`] distinct unsupported keywords.
+    pub unsupported_keywords: Vec<String>,
+    /// Statements before the first `newmtl`, which belong to no material.
+    pub outside_material: usize,
+    /// Texture options tspace does not know, skipped (one token each).
+    pub unknown_texture_options: usize,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mtl {
+    pub materials: Vec<Material>,
+    pub warnings: MtlWarnings,
+}
+
+impl Mtl {
+    /// The last material of that name (a later `newmtl` of a name redefines it, as in most
+    /// readers).
+    pub fn get(&self, name: &str) -> Option<&Material> {
+        self.materials.iter().rev().find(|m| m.name == name)
+    }
+}
+
+/// Statements tspace reads past without a warning: common, and of no use to it.
+const MTL_IGNORED: &[&[u8]] = &[
+    b"Ka",
+    b"Ni",
+    b"Tf",
+    b"illum",
+    b"map_Ka",
+    b"sharpness",
+    b"map_Ns",
+    b"map_Pr",
+    b"map_Pm",
+    b"map_Ke",
+    b"Pc",
+    b"Pcr",
+    b"aniso",
+    b"anisor",
+    b"disp",
+    b"decal",
+    b"refl",
+    b"map_aat",
+];
+
+/// How a texture option's values are read.
+#[derive(Clone, Copy)]
+enum OptionValues {
+    /// One word (`-clamp on`, `-imfchan r`, `-type sphere`).
+    Word,
+    /// At least `min` and at most `max` numbers.
+    Numbers { min: usize, max: usize },
+}
+
+fn texture_option(option: &[u8]) -> Option<OptionValues> {
+    Some(match option {
+        b"-blendu" | b"-blendv" | b"-cc" | b"-clamp" | b"-imfchan" | b"-type" => OptionValues::Word,
+        b"-bm" | b"-boost" | b"-texres" => OptionValues::Numbers { min: 1, max: 1 },
+        b"-mm" => OptionValues::Numbers { min: 2, max: 2 },
+        b"-o" | b"-s" | b"-t" => OptionValues::Numbers { min: 1, max: 3 },
+        _ => return None,
+    })
+}
+
+/// The offset of `token` (a sub-slice of `rest`) within `rest`.
+fn offset_in(rest: &[u8], token: &[u8]) -> usize {
+    (token.as_ptr() as usize).saturating_sub(rest.as_ptr() as usize)
+}
+
+fn parse_texture(
+    s: &Statement<'_>,
+    line: usize,
+    warnings: &mut MtlWarnings,
+) -> Result<Texture, ObjError> {
+    let mut texture = Texture::default();
+    let mut k = 0;
+    let bad_number = |token: &[u8]| {
+        error(
+            line,
+            ObjErrorKind::BadNumber {
+                statement: lossy(s.keyword),
+                token: lossy(token),
+            },
+        )
+    };
+    while let Some(&token) = s.args.get(k) {
+        if !token.starts_with(b"-") || token.len() < 2 {
+            break;
+        }
+        let Some(kind) = texture_option(token) else {
+            // Unknown: skip the option itself; its values, if any, cannot be told from a name.
+            warnings.unknown_texture_options += 1;
+            k += 1;
+            continue;
+        };
+        let mut values = Vec::new();
+        let mut j = k + 1;
+        match kind {
+            OptionValues::Word => j += 1,
+            OptionValues::Numbers { min, max } => {
+                // Optional values end at the first token that is not a number: the file name.
+                while values.len() < max {
+                    let Some(&value) = s.args.get(j) else { break };
+                    match parse_f32(value) {
+                        Some(v) => values.push(v),
+                        None if values.len() < min => return Err(bad_number(value)),
+                        None => break,
+                    }
+                    j += 1;
+                }
+                if values.len() < min {
+                    return Err(error(
+                        line,
+                        ObjErrorKind::TooFewValues {
+                            statement: lossy(token),
+                            expected: min,
+                            found: values.len(),
+                        },
+                    ));
+                }
+            }
+        }
+        let three = |default: f32| {
+            let mut v = [default; 3];
+            v.iter_mut().zip(&values).for_each(|(slot, &x)| *slot = x);
+            v
+        };
+        match token {
+            b"-bm" => texture.bump_multiplier = values.first().copied(),
+            b"-o" => texture.offset = Some(three(0.0)),
+            b"-s" => texture.scale = Some(three(1.0)),
+            _ => {}
+        }
+        k = j;
+    }
+    let Some(&first) = s.args.get(k) else {
+        return Err(error(
+            line,
+            ObjErrorKind::TooFewValues {
+                statement: lossy(s.keyword),
+                expected: k + 1,
+                found: s.args.len(),
+            },
+        ));
+    };
+    texture.path = lossy(&s.rest[offset_in(s.rest, first).min(s.rest.len())..]);
+    Ok(texture)
+}
+
+/// Reads an MTL file; the same line rules as [`parse_obj`].
+pub fn parse_mtl(bytes: &[u8]) -> Result<Mtl, ObjError> {
+    let mut mtl = Mtl::default();
+    for (line, text) in Lines::new(bytes) {
+        let Some(s) = split(&text) else { continue };
+        if s.keyword == b"newmtl" {
+            mtl.materials.push(Material {
+                name: lossy(s.rest),
+                ..Material::default()
+            });
+            continue;
+        }
+        if MTL_IGNORED.contains(&s.keyword) {
+            continue;
+        }
+        let Some(material) = mtl.materials.last_mut() else {
+            mtl.warnings.outside_material += 1;
+            continue;
+        };
+        let color = |s: &Statement<'_>| -> Result<Option<[f32; 3]>, ObjError> {
+            // `Kd spectral file` and `Kd xyz x y z` are colour spaces tspace does not convert.
+            if matches!(s.args.first(), Some(&b"spectral" | &b"xyz")) {
+                return Ok(None);
+            }
+            let [r, g, b] = numbers(s, line, 1, [f32::NAN; 3])?;
+            // One value means grey.
+            Ok(Some(if s.args.len() < 3 {
+                [r, r, r]
+            } else {
+                [r, g, b]
+            }))
+        };
+        let scalar = |s: &Statement<'_>| -> Result<f32, ObjError> {
+            let [v] = numbers(s, line, 1, [0.0])?;
+            Ok(v)
+        };
+        let warnings = &mut mtl.warnings;
+        match s.keyword {
+            b"Kd" => material.diffuse = color(&s)?.or(material.diffuse),
+            b"Ks" => material.specular = color(&s)?.or(material.specular),
+            b"Ke" => material.emissive = color(&s)?.or(material.emissive),
+            b"Ns" => material.shininess = Some(scalar(&s)?),
+            b"Pr" => material.roughness = Some(scalar(&s)?),
+            b"Pm" => material.metallic = Some(scalar(&s)?),
+            b"d" => {
+                let args = match s.args.first() {
+                    Some(&b"-halo") => s.args[1..].to_vec(),
+                    _ => s.args.clone(),
+                };
+                let s = Statement {
+                    keyword: s.keyword,
+                    args,
+                    rest: s.rest,
+                };
+                material.dissolve = Some(scalar(&s)?);
+            }
+            b"Tr" => material.dissolve = Some(1.0 - scalar(&s)?),
+            b"map_Kd" => material.diffuse_map = Some(parse_texture(&s, line, warnings)?),
+            b"map_Ks" => material.specular_map = Some(parse_texture(&s, line, warnings)?),
+            b"map_d" => material.dissolve_map = Some(parse_texture(&s, line, warnings)?),
+            b"map_Bump" | b"map_bump" | b"bump" => {
+                material.bump_map = Some(parse_texture(&s, line, warnings)?)
+            }
+            b"norm" => material.normal_map = Some(parse_texture(&s, line, warnings)?),
+            keyword => {
+                warnings.unsupported_statements += 1;
+                let keyword = String::from_utf8_lossy(keyword);
+                if warnings.unsupported_keywords.len() < MAX_NAMED_KEYWORDS
+                    && !warnings.unsupported_keywords.iter().any(|k| *k == keyword)
+                {
+                    warnings.unsupported_keywords.push(keyword.into_owned());
+                }
+            }
+        }
+    }
+    Ok(mtl)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn parse(text: &str) -> Obj {
+        parse_obj(text.as_bytes(), &Limits::default()).unwrap()
+    }
+
+    fn parse_err(text: &str) -> ObjError {
+        parse_obj(text.as_bytes(), &Limits::default()).unwrap_err()
+    }
+
+    /// Every triangle's position indices, in order.
+    fn position_triangles(obj: &Obj) -> Vec<[u32; 3]> {
+        obj.groups
+            .iter()
+            .flat_map(|g| &g.triangles)
+            .map(|t| t.map(|c| c.position))
+            .collect()
+    }
+
+    fn corner(position: u32, uv: Option<u32>, normal: Option<u32>) -> Corner {
+        Corner {
+            position,
+            uv,
+            normal,
+        }
+    }
+
+    fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+    }
+
+    fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    }
+
+    fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    }
+
+    /// Asserts that `triangles` tile the planar polygon: n - 2 of them, every one wound like the
+    /// polygon (so none folds back over another), and their areas add up to the polygon's. For a
+    /// fan of a concave polygon the second fails: some triangles wind the other way and their
+    /// areas add up to more than the polygon's.
+    fn assert_tiles(polygon: &[[f32; 3]], triangles: &[[usize; 3]]) {
+        let p: Vec<[f64; 3]> = polygon.iter().map(|v| v.map(f64::from)).collect();
+        let n = p.len();
+        assert_eq!(triangles.len(), n - 2);
+        let mut normal = [0.0; 3];
+        for i in 0..n {
+            let c = cross(p[i], p[(i + 1) % n]);
+            normal = [normal[0] + c[0], normal[1] + c[1], normal[2] + c[2]];
+        }
+        let area = dot(normal, normal).sqrt() / 2.0;
+        let unit = normal.map(|c| c / (2.0 * area));
+        let mut sum = 0.0;
+        for t in triangles {
+            let c = cross(sub(p[t[1]], p[t[0]]), sub(p[t[2]], p[t[0]]));
+            let signed = dot(c, unit) / 2.0;
+            assert!(signed >= -1e-9 * area, "{t:?} winds backwards ({signed})");
+            sum += signed.abs();
+        }
+        assert!((sum - area).abs() <= 1e-6 * area, "areas {sum} != {area}");
+    }
+
+    fn planar(points: &[[f32; 2]]) -> Vec<[f32; 3]> {
+        points.iter().map(|&[x, y]| [x, y, 0.0]).collect()
+    }
+
+    const L_SHAPE: [[f32; 2]; 6] = [
+        [0.0, 0.0],
+        [2.0, 0.0],
+        [2.0, 1.0],
+        [1.0, 1.0],
+        [1.0, 2.0],
+        [0.0, 2.0],
+    ];
+
+    #[test]
+    fn triangles_and_quads_keep_their_winding_and_fan_from_the_first_corner() {
+        let obj = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 2 3 4\n");
+        assert_eq!(position_triangles(&obj), [[0, 1, 2], [0, 1, 2], [0, 2, 3]]);
+        assert_eq!(obj.groups.len(), 1);
+        assert_eq!(obj.groups[0].smoothing, [0, 0, 0]);
+        assert_eq!(obj.warnings, Warnings::default());
+        assert_eq!(obj.triangle_count(), 3);
+    }
+
+    #[test]
+    fn convex_ngon_is_the_fan() {
+        let mut text = String::new();
+        for k in 0..7 {
+            let a = k as f32 * std::f32::consts::TAU / 7.0;
+            text += &format!("v {} {} 0.5\n", a.cos(), a.sin());
+        }
+        text += "f 1 2 3 4 5 6 7\n";
+        let obj = parse(&text);
+        let expected: Vec<[u32; 3]> = (1..6).map(|i| [0, i, i + 1]).collect();
+        assert_eq!(position_triangles(&obj), expected);
+    }
+
+    #[test]
+    fn concave_l_shape_gives_four_triangles_inside_the_l() {
+        // Every rotation of the corner order, in both windings, tilted out of any axis plane.
+        for reverse in [false, true] {
+            for rotation in 0..6 {
+                let mut points = L_SHAPE.to_vec();
+                if reverse {
+                    points.reverse();
+                }
+                points.rotate_left(rotation);
+                let polygon: Vec<[f32; 3]> = points
+                    .iter()
+                    .map(|&[x, y]| [x, 0.6 * y, 0.8 * y + 0.25 * x])
+                    .collect();
+                let mut triangles = Vec::new();
+                assert_eq!(triangulate(&polygon, &mut triangles), Triangulation::Ears);
+                assert_tiles(&polygon, &triangles);
+                // And no triangle's centroid lies outside the L (the square [1,2]x[1,2]).
+                for t in &triangles {
+                    let [x, y] = [0, 1].map(|k| t.iter().map(|&i| points[i][k]).sum::<f32>() / 3.0);
+                    assert!(!(x > 1.0 && y > 1.0), "{t:?} at ({x}, {y})");
+                }
+            }
+        }
+        // Through the OBJ reader: the reflex corner (4) is first.
+        let obj = parse("v 0 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nf 4 5 6 1 2 3\n");
+        let triangles = position_triangles(&obj);
+        assert_eq!(triangles.len(), 4);
+        let local: Vec<[usize; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|i| [3, 4, 5, 0, 1, 2].iter().position(|&p| p == i).unwrap()))
+            .collect();
+        let polygon = planar(&[
+            L_SHAPE[3], L_SHAPE[4], L_SHAPE[5], L_SHAPE[0], L_SHAPE[1], L_SHAPE[2],
+        ]);
+        assert_tiles(&polygon, &local);
+        assert_eq!(obj.warnings.polygons_fanned, 0);
+    }
+
+    #[test]
+    fn dart_quad_is_split_along_the_inner_diagonal() {
+        let dart = [[0.0, 0.0], [2.0, 1.0], [0.0, 2.0], [0.5, 1.0]];
+        for rotation in 0..4 {
+            let mut points = dart.to_vec();
+            points.rotate_left(rotation);
+            let polygon = planar(&points);
+            let mut triangles = Vec::new();
+            triangulate(&polygon, &mut triangles);
+            assert_tiles(&polygon, &triangles);
+        }
+    }
+
+    #[test]
+    fn degenerate_polygons_fall_back_to_a_fan() {
+        let obj = parse("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3 4\n");
+        assert_eq!(position_triangles(&obj), [[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(obj.warnings.polygons_fanned, 1);
+        let obj = parse("v nan 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+        assert_eq!(position_triangles(&obj), [[0, 1, 2], [0, 2, 3]]);
+        // A bow tie: its two halves cancel in the Newell normal.
+        let obj = parse("v 0 0 0\nv 1 1 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 4\n");
+        assert_eq!(obj.triangle_count(), 2);
+        assert_eq!(obj.warnings.polygons_fanned, 1);
+        // Collinear corners inside a polygon are fine.
+        let mut triangles = Vec::new();
+        let square = planar(&[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]);
+        assert_eq!(triangulate(&square, &mut triangles), Triangulation::Ears);
+        assert_tiles(&square, &triangles);
+    }
+
+    /// A comb: `teeth` reflex notches, so every ear test scans most of the polygon.
+    fn comb(teeth: usize) -> Vec<[f32; 3]> {
+        let mut points = Vec::new();
+        for k in 0..teeth {
+            let x = k as f32;
+            points.extend([[x, 0.0], [x + 0.5, 10.0]]);
+        }
+        let end = teeth as f32;
+        points.extend([[end, 0.0], [end, -1.0], [0.0, -1.0]]);
+        planar(&points)
+    }
+
+    #[test]
+    fn large_concave_polygons_tile_and_huge_ones_finish_within_their_budget() {
+        let polygon = comb(400);
+        let mut triangles = Vec::new();
+        assert_eq!(triangulate(&polygon, &mut triangles), Triangulation::Ears);
+        assert_tiles(&polygon, &triangles);
+        // Past about 2000 corners the quadratic search outruns the linear budget: the polygon
+        // still gets its n - 2 triangles, quickly, partly as a fan, and is counted.
+        let polygon = comb(5000);
+        let mut triangles = Vec::new();
+        let started = std::time::Instant::now();
+        assert_eq!(triangulate(&polygon, &mut triangles), Triangulation::Fan);
+        assert!(started.elapsed().as_secs_f32() < 5.0);
+        assert_eq!(triangles.len(), polygon.len() - 2);
+    }
+
+    #[test]
+    fn self_intersecting_polygons_still_give_n_minus_2_triangles() {
+        // A pentagram, drawn as one 5-corner polygon.
+        let star: Vec<[f32; 2]> = (0..5)
+            .map(|k| {
+                let a = (k * 2 % 5) as f32 * std::f32::consts::TAU / 5.0;
+                [a.cos(), a.sin()]
+            })
+            .collect();
+        let mut triangles = Vec::new();
+        triangulate(&planar(&star), &mut triangles);
+        assert_eq!(triangles.len(), 3);
+        assert!(triangles.iter().flatten().all(|&i| i < 5));
+    }
+
+    #[test]
+    fn negative_indices_count_back_from_what_is_defined() {
+        let obj = parse(
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\n\
+             f -3/-3/-1 -2/-2/-1 -1/-1/-1\nv 0 1 0\nf -4 -2 -1\n",
+        );
+        let t = &obj.groups[0].triangles;
+        assert_eq!(
+            t[0],
+            [
+                corner(0, Some(0), Some(0)),
+                corner(1, Some(1), Some(0)),
+                corner(2, Some(2), Some(0))
+            ]
+        );
+        assert_eq!(
+            t[1],
+            [
+                corner(0, None, None),
+                corner(2, None, None),
+                corner(3, None, None)
+            ]
+        );
+    }
+
+    #[test]
+    fn every_corner_form() {
+        let obj = parse(
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\nvn 0 0 -1\n\
+             f 1 2 3\nf 1/1 2/2 3/3\nf 1//1 2//2 3//1\nf 1/1/2 2/2/2 3/3/1\nf 1/ 2/ 3/\n",
+        );
+        let t = &obj.groups[0].triangles;
+        assert_eq!(t[0][2], corner(2, None, None));
+        assert_eq!(t[1][2], corner(2, Some(2), None));
+        assert_eq!(t[2][1], corner(1, None, Some(1)));
+        assert_eq!(t[3][0], corner(0, Some(0), Some(1)));
+        assert_eq!(t[4][0], corner(0, None, None));
+        assert_eq!(obj.warnings, Warnings::default());
+    }
+
+    #[test]
+    fn partial_uvs_or_normals_are_dropped_for_the_face_and_counted() {
+        let obj = parse(
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvn 0 0 1\n\
+             f 1/1/1 2/1 3/1/1\nf 1//1 2 3\nf 1/1/1 2/1/1 3/1/1\n",
+        );
+        let t = &obj.groups[0].triangles;
+        assert!(t[0].iter().all(|c| c.uv == Some(0) && c.normal.is_none()));
+        assert!(t[1].iter().all(|c| c.uv.is_none() && c.normal.is_none()));
+        assert!(t[2].iter().all(|c| c.uv == Some(0) && c.normal == Some(0)));
+        assert_eq!(obj.warnings.faces_with_partial_uvs, 0);
+        assert_eq!(obj.warnings.faces_with_partial_normals, 2);
+        let obj = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2 3/1\n");
+        assert!(obj.groups[0].triangles[0].iter().all(|c| c.uv.is_none()));
+        assert_eq!(obj.warnings.faces_with_partial_uvs, 1);
+    }
+
+    #[test]
+    fn objects_groups_materials_and_smoothing() {
+        let obj = parse(
+            "mtllib a.mtl b.mtl\nmtllib my materials.mtl\n\
+             v 0 0 0\nv 1 0 0\nv 1 1 0\n\
+             f 1 2 3\n\
+             o Cube Object\ng left right\nusemtl red paint\ns 1\nf 1 2 3\ns off\nf 1 2 3\n\
+             usemtl red paint\nf 1 2 3\n\
+             usemtl blue\ng\n\
+             o Other\nusemtl red paint\nf 1 2 3\n",
+        );
+        assert_eq!(
+            obj.material_libraries,
+            ["a.mtl", "b.mtl", "my materials.mtl"]
+        );
+        let summary: Vec<_> = obj
+            .groups
+            .iter()
+            .map(|g| {
+                (
+                    g.object.as_deref(),
+                    g.groups.clone(),
+                    g.material.as_deref(),
+                    g.smoothing.clone(),
+                )
+            })
+            .collect();
+        assert_eq!(
+            summary,
+            [
+                (None, vec![], None, vec![0]),
+                (
+                    Some("Cube Object"),
+                    vec!["left".to_string(), "right".to_string()],
+                    Some("red paint"),
+                    vec![1, 0, 0]
+                ),
+                (Some("Other"), vec![], Some("red paint"), vec![0]),
+            ]
+        );
+    }
+
+    #[test]
+    fn vertex_colors_default_to_white_when_some_are_missing() {
+        let obj = parse("v 0 0 0\nv 1 0 0 1 0 0\nv 1 1 0 0 1 0 0.5\nv 0 1 0 1\n");
+        assert_eq!(
+            obj.colors.as_deref(),
+            Some(
+                &[
+                    [1.0, 1.0, 1.0],
+                    [1.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                    [1.0, 1.0, 1.0]
+                ][..]
+            )
+        );
+        assert_eq!(obj.positions[3], [0.0, 1.0, 0.0]);
+        assert_eq!(obj.warnings.vertices_without_color, 2);
+        assert_eq!(parse("v 0 0 0\nv 1 1 1 1\n").colors, None);
+        let obj = parse("v 0 0 0 1 1\nv 0 0 0 1 1 1 1 1\n");
+        assert_eq!(obj.warnings.vertices_with_odd_value_count, 2);
+        assert_eq!(obj.colors, None);
+    }
+
+    #[test]
+    fn lines_comments_continuations_and_unknown_statements() {
+        let obj = parse(
+            "\u{feff}# a comment\r\nv 0 0 0 # trailing\r\nv 1 \\\r\n  0 0\r\nv 1 1 0\r\n\
+             vt 0.5\nvt 0.25 0.75 0.1\n\
+             f 1 2 \\\n3\nl 1 2\np 1\nvp 0.5\ncstype bezier\nvp 1\nusemtl mat#2\nf 1 2 3\n\n   \n\t\n",
+        );
+        assert_eq!(obj.positions, [[0.0; 3], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]]);
+        assert_eq!(obj.uvs, [[0.5, 0.0], [0.25, 0.75]]);
+        assert_eq!(obj.triangle_count(), 2);
+        assert_eq!(obj.groups[1].material.as_deref(), Some("mat#2"));
+        assert_eq!(obj.warnings.lines_skipped, 1);
+        assert_eq!(obj.warnings.points_skipped, 1);
+        assert_eq!(obj.warnings.unsupported_statements, 3);
+        assert_eq!(obj.warnings.unsupported_keywords, ["vp", "cstype"]);
+        // Errors after a continuation report the first physical line.
+        assert_eq!(parse_err("v 0 0 0\nv 1 \\\n x 0\n").line, 2);
+        // A continuation at the end of the file just ends the line.
+        assert_eq!(parse("v 1 2 3 \\").positions, [[1.0, 2.0, 3.0]]);
+    }
+
+    #[test]
+    fn latin1_names_are_kept_lossily() {
+        let obj = parse_obj(
+            b"v 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl caf\xe9\nf 1 2 3\n",
+            &Limits::default(),
+        )
+        .unwrap();
+        assert_eq!(obj.groups[0].material.as_deref(), Some("caf\u{fffd}"));
+    }
+
+    #[test]
+    fn special_float_spellings() {
+        let obj = parse("v inf -Inf +INFINITY\nv nan -nan NaN\nv 1e3 -.5 2.\n");
+        assert_eq!(
+            obj.positions[0],
+            [f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY]
+        );
+        assert!(obj.positions[1].iter().all(|v| v.is_nan()));
+        assert_eq!(obj.positions[2], [1000.0, -0.5, 2.0]);
+    }
+
+    #[test]
+    fn face_errors_name_the_line() {
+        let head = "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\n";
+        let cases: [(&str, ObjErrorKind); 10] = [
+            ("f 1 2 x", ObjErrorKind::BadCorner { token: "x".into() }),
+            (
+                "f 1 2 3/1/1/1",
+                ObjErrorKind::BadCorner {
+                    token: "3/1/1/1".into(),
+                },
+            ),
+            ("f 1 2 /1", ObjErrorKind::BadCorner { token: "/1".into() }),
+            (
+                "f 1 2 1.5",
+                ObjErrorKind::BadCorner {
+                    token: "1.5".into(),
+                },
+            ),
+            ("f 1 2 0", ObjErrorKind::ZeroIndex { what: "position" }),
+            (
+                "f 1/0 2/1 3/1",
+                ObjErrorKind::ZeroIndex {
+                    what: "texture coordinate",
+                },
+            ),
+            (
+                "f 1 2 4",
+                ObjErrorKind::IndexOutOfRange {
+                    what: "position",
+                    index: 4,
+                    count: 3,
+                },
+            ),
+            (
+                "f 1 2 -4",
+                ObjErrorKind::IndexOutOfRange {
+                    what: "position",
+                    index: -4,
+                    count: 3,
+                },
+            ),
+            (
+                "f 1//1 2//1 3//1",
+                ObjErrorKind::IndexOutOfRange {
+                    what: "normal",
+                    index: 1,
+                    count: 0,
+                },
+            ),
+            (
+                "f 1 2 99999999999999999999",
+                ObjErrorKind::BadCorner {
+                    token: "99999999999999999999".into(),
+                },
+            ),
+        ];
+        for (face, kind) in cases {
+            let err = parse_err(&format!("{head}\n{face}\n"));
+            assert_eq!(err, ObjError { line: 6, kind }, "{face}");
+            assert!(err.to_string().starts_with("line 6: "), "{err}");
+        }
+        let err = parse_err(&format!("{head}f 1 2 -9223372036854775808\n"));
+        assert!(
+            matches!(err.kind, ObjErrorKind::IndexOutOfRange { .. }),
+            "{err:?}"
+        );
+        // References must follow definitions.
+        let err = parse_err("v 0 0 0\nv 1 0 0\nf 1 2 3\nv 1 1 0\n");
+        assert_eq!(err.line, 3);
+    }
+
+    #[test]
+    fn value_errors_name_the_line() {
+        assert_eq!(
+            parse_err("v 1 2 abc\n"),
+            ObjError {
+                line: 1,
+                kind: ObjErrorKind::BadNumber {
+                    statement: "v".into(),
+                    token: "abc".into()
+                }
+            }
+        );
+        assert_eq!(
+            parse_err("\nvn 1 2\n"),
+            ObjError {
+                line: 2,
+                kind: ObjErrorKind::TooFewValues {
+                    statement: "vn".into(),
+                    expected: 3,
+                    found: 2
+                }
+            }
+        );
+        assert!(matches!(
+            parse_err("vt\n").kind,
+            ObjErrorKind::TooFewValues { .. }
+        ));
+        assert!(matches!(
+            parse_err("v 1 2 3 red 0 0\n").kind,
+            ObjErrorKind::BadNumber { .. }
+        ));
+        assert!(matches!(
+            parse_err("s smooth\n").kind,
+            ObjErrorKind::BadNumber { .. }
+        ));
+        assert!(matches!(
+            parse_err("vt 1,5\n").kind,
+            ObjErrorKind::BadNumber { .. }
+        ));
+        // Faces with fewer than three corners are skipped, not errors.
+        let obj = parse("v 0 0 0\nf 1 1\nf\n");
+        assert_eq!(obj.warnings.faces_too_few_corners, 2);
+        assert!(obj.groups.is_empty());
+    }
+
+    #[test]
+    fn limits_are_errors() {
+        let limits = Limits {
+            max_vertices: 3,
+            max_triangles: 2,
+            max_polygon_corners: 4,
+        };
+        let ok = "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvn 0 0 1\nf 1 2 3 1\n";
+        assert!(parse_obj(ok.as_bytes(), &limits).is_ok());
+        for (text, what, line) in [
+            ("v 0 0 0\nv 0 0 0\nv 0 0 0\nv 0 0 0\n", "vertices", 4),
+            ("vt 0\nvt 0\nvt 0\nvt 0\n", "texture coordinates", 4),
+            ("vn 0 0 1\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\n", "normals", 4),
+            (
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3 1 2\n",
+                "corners in one face",
+                4,
+            ),
+            (
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 3\nf 1 2 3\n",
+                "triangles",
+                6,
+            ),
+            (
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 3 1\n",
+                "triangles",
+                5,
+            ),
+        ] {
+            let err = parse_obj(text.as_bytes(), &limits).unwrap_err();
+            let limit = match what {
+                "corners in one face" => 4,
+                "triangles" => 2,
+                _ => 3,
+            };
+            assert_eq!(
+                err,
+                ObjError {
+                    line,
+                    kind: ObjErrorKind::LimitExceeded { what, limit }
+                }
+            );
+        }
+    }
+
+    #[test]
+    fn mtl_materials_and_texture_options() {
+        let mtl = parse_mtl(
+            b"# header\nKd 1 1 1\nnewmtl first\nKa 0.2 0.2 0.2\nKd 0.5 0.25 0.125\nKs 0.3\n\
+              Ns 96.5\nd 0.75\nKe 1 0.5 0\nPr 0.4\nPm 1\nillum 2\nTf 1 1 1\nNi 1.45\n\
+              map_Kd -s 2 2 -o 0.5 -clamp on textures/my diffuse.png\n\
+              map_Bump -bm 0.8 -imfchan r normal.png\nmap_d -mm 0 1 alpha.png\n\
+              map_Ks .\\spec.jpg\nnorm -o -0.25 0.5 0.75 -bm 2 n.png\nfoo 1\nbar\nfoo 2\n\
+              newmtl second\nTr 0.25\nd -halo 0.5\nbump -blendu off -unknown b.png\nKd spectral x.rfl\n\
+              newmtl first\nTr 0.1\nmap_bump -texres 512 -type sphere -cc off -boost 1.5 -t 0.1 0.2 c.png\n",
+        )
+        .unwrap();
+        assert_eq!(mtl.materials.len(), 3);
+        let m = &mtl.materials[0];
+        assert_eq!(m.name, "first");
+        assert_eq!(m.diffuse, Some([0.5, 0.25, 0.125]));
+        assert_eq!(m.specular, Some([0.3; 3]));
+        assert_eq!(m.shininess, Some(96.5));
+        assert_eq!(m.dissolve, Some(0.75));
+        assert_eq!(m.emissive, Some([1.0, 0.5, 0.0]));
+        assert_eq!((m.roughness, m.metallic), (Some(0.4), Some(1.0)));
+        assert_eq!(
+            m.diffuse_map,
+            Some(Texture {
+                path: "textures/my diffuse.png".into(),
+                bump_multiplier: None,
+                offset: Some([0.5, 0.0, 0.0]),
+                scale: Some([2.0, 2.0, 1.0]),
+            })
+        );
+        let bump = m.bump_map.as_ref().unwrap();
+        assert_eq!(
+            (bump.path.as_str(), bump.bump_multiplier),
+            ("normal.png", Some(0.8))
+        );
+        assert_eq!(m.dissolve_map.as_ref().unwrap().path, "alpha.png");
+        assert_eq!(m.specular_map.as_ref().unwrap().path, ".\\spec.jpg");
+        let norm = m.normal_map.as_ref().unwrap();
+        assert_eq!(norm.path, "n.png");
+        assert_eq!(norm.offset, Some([-0.25, 0.5, 0.75]));
+        assert_eq!(norm.bump_multiplier, Some(2.0));
+        let second = &mtl.materials[1];
+        assert_eq!(second.dissolve, Some(0.5));
+        assert_eq!(second.bump_map.as_ref().unwrap().path, "b.png");
+        assert_eq!(second.diffuse, None);
+        // A redefinition wins in lookups.
+        let again = mtl.get("first").unwrap();
+        assert!((again.dissolve.unwrap() - 0.9).abs() < 1e-6);
+        assert_eq!(again.bump_map.as_ref().unwrap().path, "c.png");
+        assert_eq!(mtl.get("second").unwrap().name, "second");
+        assert!(mtl.get("third").is_none());
+        assert_eq!(
+            mtl.warnings,
+            MtlWarnings {
+                unsupported_statements: 3,
+                unsupported_keywords: vec!["foo".into(), "bar".into()],
+                outside_material: 1,
+                unknown_texture_options: 1,
+            }
+        );
+    }
+
+    #[test]
+    fn mtl_errors() {
+        let err = parse_mtl(b"newmtl a\nKd 1 x 1\n").unwrap_err();
+        assert_eq!(
+            err,
+            ObjError {
+                line: 2,
+                kind: ObjErrorKind::BadNumber {
+                    statement: "Kd".into(),
+                    token: "x".into()
+                }
+            }
+        );
+        assert_eq!(parse_mtl(b"newmtl a\nNs\n").unwrap_err().line, 2);
+        assert!(matches!(
+            parse_mtl(b"newmtl a\nmap_Kd -bm\n").unwrap_err().kind,
+            ObjErrorKind::TooFewValues { .. }
+        ));
+        assert!(matches!(
+            parse_mtl(b"newmtl a\nmap_Kd -bm x.png\n").unwrap_err().kind,
+            ObjErrorKind::BadNumber { .. }
+        ));
+        assert!(matches!(
+            parse_mtl(b"newmtl a\nmap_Kd -clamp on\n").unwrap_err().kind,
+            ObjErrorKind::TooFewValues { .. }
+        ));
+        assert!(matches!(
+            parse_mtl(b"newmtl a\nmap_Kd -mm 1 x.png\n")
+                .unwrap_err()
+                .kind,
+            ObjErrorKind::BadNumber { .. }
+        ));
+    }
+
+    fn fixture(path: &str) -> Option<Vec<u8>> {
+        let full = format!("{}/fixtures/{path}", env!("CARGO_MANIFEST_DIR"));
+        let bytes = std::fs::read(&full).ok();
+        if bytes.is_none() {
+            eprintln!("skipping: {full} is absent");
+        }
+        bytes
+    }
+
+    fn corpus(path: &str) -> Option<Vec<u8>> {
+        let full = format!("{}/../shared/corpus/{path}", env!("CARGO_MANIFEST_DIR"));
+        let bytes = std::fs::read(&full).ok();
+        if bytes.is_none() {
+            eprintln!("skipping: {full} is absent");
+        }
+        bytes
+    }
+
+    #[test]
+    fn assimp_concave_polygon_with_a_hole_bridge_tiles_exactly() {
+        let Some(bytes) = fixture("concave_polygon/concave_polygon.obj") else {
+            return;
+        };
+        let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+        assert_eq!(obj.positions.len(), 64);
+        assert_eq!(obj.triangle_count(), 64);
+        assert_eq!(obj.warnings.polygons_fanned, 0);
+        assert_eq!(obj.material_libraries, ["concave_polygon.mtl"]);
+        let group = &obj.groups[0];
+        assert_eq!(group.object.as_deref(), Some("concave_test.obj"));
+        assert_eq!(group.groups, ["default"]);
+        assert_eq!(group.material.as_deref(), Some("test"));
+        assert_eq!(group.smoothing[0], 1);
+        assert!(
+            group
+                .triangles
+                .iter()
+                .flatten()
+                .all(|c| c.uv.is_none() && c.normal == Some(0))
+        );
+        // Rebuild the face's corner list from the file to check the tiling against it.
+        let text = String::from_utf8(bytes).unwrap();
+        let face: Vec<u32> = text
+            .lines()
+            .find(|l| l.starts_with("f "))
+            .unwrap()
+            .split_whitespace()
+            .skip(1)
+            .map(|c| c.split('/').next().unwrap().parse::<u32>().unwrap() - 1)
+            .collect();
+        let polygon: Vec<[f32; 3]> = face.iter().map(|&i| obj.positions[i as usize]).collect();
+        let mut local = Vec::new();
+        triangulate(&polygon, &mut local);
+        assert_tiles(&polygon, &local);
+        let via_reader: Vec<[u32; 3]> = local.iter().map(|t| t.map(|i| face[i])).collect();
+        assert_eq!(position_triangles(&obj), via_reader);
+        // A fan of the same face would not tile it.
+        let fan: Vec<[usize; 3]> = (1..face.len() - 1).map(|i| [0, i, i + 1]).collect();
+        assert!(std::panic::catch_unwind(|| assert_tiles(&polygon, &fan)).is_err());
+
+        let mtl = parse_mtl(&fixture("concave_polygon/concave_polygon.mtl").unwrap()).unwrap();
+        assert_eq!(mtl.materials.len(), 1);
+        assert_eq!(
+            mtl.materials[0].diffuse,
+            Some([0.141176, 0.184314, 0.411765])
+        );
+        assert_eq!(mtl.materials[0].shininess, Some(400.0));
+        assert_eq!(mtl.materials[0].dissolve, Some(1.0));
+        assert_eq!(mtl.warnings, MtlWarnings::default());
+    }
+
+    #[test]
+    fn trimesh_negative_indices_cube() {
+        let Some(bytes) = fixture("negative_indices/negative_indices.obj") else {
+            return;
+        };
+        let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+        assert_eq!(
+            (obj.positions.len(), obj.uvs.len(), obj.normals.len()),
+            (8, 14, 6)
+        );
+        assert_eq!(obj.triangle_count(), 12);
+        // `f -8/-13/-6 -4/-12/-6 -2/-12/-6 -6/-11/-6` with 8 v, 14 vt, 6 vn.
+        let first = obj.groups[0].triangles[0];
+        assert_eq!(
+            first,
+            [
+                corner(0, Some(1), Some(0)),
+                corner(4, Some(2), Some(0)),
+                corner(6, Some(2), Some(0))
+            ]
+        );
+        // A closed cube: every edge is used once in each direction.
+        let mut edges: Vec<(u32, u32)> = position_triangles(&obj)
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .collect();
+        edges.sort_unstable();
+        for &(a, b) in &edges {
+            assert!(
+                edges.binary_search(&(b, a)).is_ok(),
+                "edge {a}-{b} has no twin"
+            );
+        }
+    }
+
+    #[test]
+    fn assimp_spider_with_its_materials() {
+        let (Some(obj_bytes), Some(mtl_bytes)) =
+            (fixture("spider/spider.obj"), fixture("spider/spider.mtl"))
+        else {
+            return;
+        };
+        let obj = parse_obj(&obj_bytes, &Limits::default()).unwrap();
+        assert_eq!(
+            (obj.positions.len(), obj.uvs.len(), obj.normals.len()),
+            (762, 302, 747)
+        );
+        assert_eq!(obj.triangle_count(), 1368);
+        assert_eq!(obj.groups.len(), 19);
+        assert_eq!(obj.material_libraries, ["spider.mtl"]);
+        assert!(
+            obj.groups
+                .iter()
+                .flat_map(|g| &g.triangles)
+                .flatten()
+                .all(|c| c.uv.is_some() && c.normal.is_some())
+        );
+        let mtl = parse_mtl(&mtl_bytes).unwrap();
+        assert_eq!(mtl.materials.len(), 5);
+        for group in &obj.groups {
+            let name = group.material.as_deref().unwrap();
+            assert!(mtl.get(name).is_some(), "{name}");
+        }
+        assert_eq!(
+            mtl.get("Skin").unwrap().diffuse_map.as_ref().unwrap().path,
+            ".\\wal67ar_small.jpg"
+        );
+    }
+
+    #[test]
+    fn draco_edge_cases_from_the_corpus() {
+        let dir = "obj_draco_edge_cases";
+        if let Some(bytes) = corpus(&format!("{dir}/inf_nan.obj")) {
+            let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+            assert_eq!(obj.positions[0][0], f32::INFINITY);
+            assert!(obj.positions[1][0].is_nan() && obj.positions[1][2] == f32::NEG_INFINITY);
+            assert_eq!(obj.triangle_count(), 1);
+        }
+        if let Some(bytes) = corpus(&format!("{dir}/octagon.obj")) {
+            let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+            assert_eq!(obj.triangle_count(), 6);
+            let polygon = obj.positions.clone();
+            let local: Vec<[usize; 3]> = position_triangles(&obj)
+                .iter()
+                .map(|t| t.map(|i| i as usize))
+                .collect();
+            assert_tiles(&polygon, &local);
+        }
+        if let Some(bytes) = corpus(&format!("{dir}/deg_faces.obj")) {
+            let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+            assert_eq!(position_triangles(&obj)[3], [0, 0, 2]);
+        }
+        for name in [
+            "cube_att.obj",
+            "cube_quads.obj",
+            "triangle_with_degenerate_tex_coords.obj",
+        ] {
+            if let Some(bytes) = corpus(&format!("{dir}/{name}")) {
+                let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+                assert!(obj.triangle_count() >= 1, "{name}");
+                assert_eq!(obj.warnings, Warnings::default(), "{name}");
+            }
+        }
+    }
+
+    #[test]
+    fn larger_corpus_files_read_cleanly() {
+        for (path, triangles) in [
+            ("obj_spot/spot_control_mesh.obj", None),
+            ("obj_spot/spot_quadrangulated.obj", Some(5856)),
+            ("obj_spot/spot_triangulated.obj", Some(5856)),
+            ("obj_teapot_no_uv/teapot.obj", Some(6320)),
+            ("obj_stanford_bunny_no_uv/stanford-bunny.obj", Some(69451)),
+        ] {
+            let Some(bytes) = corpus(path) else { continue };
+            let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+            if let Some(t) = triangles {
+                assert_eq!(obj.triangle_count(), t, "{path}");
+            }
+            assert_eq!(obj.warnings.polygons_fanned, 0, "{path}");
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
+            let _ = parse_obj(&bytes, &Limits::default());
+            let _ = parse_mtl(&bytes);
+        }
+
+        #[test]
+        fn obj_like_text_never_panics_and_indices_stay_in_range(
+            parts in proptest::collection::vec(
+                prop::sample::select(vec![
+                    "v ", "vt ", "vn ", "f ", "l ", "o x", "g a b", "usemtl m", "s 1", "\n", " ",
+                    "\\\n", "#", "1", "-1", "2", "-3", "0", "/", "//", "0.5", "nan", "inf", "e", "-",
+                    "map_Kd ", "-bm ", "-o ", "newmtl n\n", "Kd ", "d ", "Tr ", "\r\n",
+                ]),
+                0..80,
+            )
+        ) {
+            let text: String = parts.concat();
+            if let Ok(obj) = parse_obj(text.as_bytes(), &Limits::default()) {
+                for c in obj.groups.iter().flat_map(|g| &g.triangles).flatten() {
+                    prop_assert!((c.position as usize) < obj.positions.len());
+                    prop_assert!(c.uv.is_none_or(|i| (i as usize) < obj.uvs.len()));
+                    prop_assert!(c.normal.is_none_or(|i| (i as usize) < obj.normals.len()));
+                }
+                for g in &obj.groups {
+                    prop_assert_eq!(g.triangles.len(), g.smoothing.len());
+                }
+            }
+            let _ = parse_mtl(text.as_bytes());
+        }
+
+        #[test]
+        fn random_polygons_triangulate_into_n_minus_2_triangles(
+            points in proptest::collection::vec((-4i8..4, -4i8..4, -1i8..2), 3..12)
+        ) {
+            let polygon: Vec<[f32; 3]> =
+                points.iter().map(|&(x, y, z)| [f32::from(x), f32::from(y), f32::from(z)]).collect();
+            let mut triangles = Vec::new();
+            triangulate(&polygon, &mut triangles);
+            prop_assert_eq!(triangles.len(), polygon.len() - 2);
+            prop_assert!(triangles.iter().flatten().all(|&i| i < polygon.len()));
+            // Each corner of the polygon is used by some triangle.
+            for i in 0..polygon.len() {
+                prop_assert!(triangles.iter().flatten().any(|&j| j == i));
+            }
+        }
+
+        #[test]
+        fn star_shaped_polygons_tile(
+            radii in proptest::collection::vec(0.2f32..2.0, 4..24),
+            tilt in -1.0f32..1.0,
+        ) {
+            // Star-shaped about the origin, so simple, and concave wherever radii dip.
+            let n = radii.len();
+            let polygon: Vec<[f32; 3]> = radii
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    let a = k as f32 * std::f32::consts::TAU / n as f32;
+                    let (x, y) = (r * a.cos(), r * a.sin());
+                    [x, y * tilt.cos(), y * tilt.sin()]
+                })
+                .collect();
+            let mut triangles = Vec::new();
+            prop_assert_eq!(triangulate(&polygon, &mut triangles), Triangulation::Ears);
+            assert_tiles(&polygon, &triangles);
+        }
+    }
+}
