@@ -4,10 +4,14 @@
 //! a mirror seam is split instead of averaging two opposite frames into nothing.
 
 use super::Weighting;
+use super::diagnostics::{Diagnostics, FallbackCounts};
+use super::fallback::{self, Problem};
 use super::math::{
-    Mesh, UNASSIGNED, add, cross, dot, encode, is_finite3, length, normalize_or_zero, reject,
-    same_position, scale, sub,
+    Mesh, add, cross, dot, encode, is_finite3, length, normalize_or_zero, reject, same_position,
+    scale, sub,
 };
+use super::output::{Copies, SharedSplit};
+use super::split::SplitPlan;
 use super::weld::{CornerTable, weld_mesh};
 use rayon::prelude::*;
 
@@ -72,7 +76,15 @@ fn corner_angle(mesh: &Mesh<'_>, corner: usize) -> f32 {
     if angle.is_finite() { angle } else { 0.0 }
 }
 
-pub(crate) fn generate(mesh: &Mesh<'_>, weighting: Weighting, parallel: bool) -> Vec<[f32; 4]> {
+/// Fast tangents as a split plan: invalid ones repaired (counted in `diagnostics`), `w` negated
+/// when `flip_w` is set.
+pub(crate) fn generate(
+    mesh: &Mesh<'_>,
+    weighting: Weighting,
+    parallel: bool,
+    flip_w: bool,
+    diagnostics: &mut Diagnostics,
+) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
     let faces: Vec<Face> = if parallel {
         (0..triangle_count)
@@ -99,66 +111,79 @@ pub(crate) fn generate(mesh: &Mesh<'_>, weighting: Weighting, parallel: bool) ->
     };
 
     // Per class: accumulate each handedness apart, then give every corner the sum of its side.
-    let evaluate = |class: usize, out: &mut [[f32; 4]]| {
-        let corners = table.of(class);
-        let normal = mesh.normals[mesh.indices[corners[0] as usize] as usize];
-        // [preserving, mirrored] sums of s and t.
-        let mut sums = [[[0.0f32; 3]; 2]; 2];
-        for &corner in corners {
-            let f = &faces[corner as usize / 3];
-            if f.sign == 0.0 {
-                continue;
+    let evaluate =
+        |class: usize, repairs: &mut Vec<(u32, Problem)>, put: &mut dyn FnMut(usize, [f32; 4])| {
+            let corners = table.of(class);
+            let normal = mesh.normals[mesh.indices[corners[0] as usize] as usize];
+            let normal_ok = fallback::is_nearly_unit(normal);
+            // [preserving, mirrored] sums of s and t.
+            let mut sums = [[[0.0f32; 3]; 2]; 2];
+            for &corner in corners {
+                let f = &faces[corner as usize / 3];
+                if f.sign == 0.0 {
+                    continue;
+                }
+                let side = usize::from(f.sign < 0.0);
+                let w = weight(corner as usize);
+                sums[side][0] = add(sums[side][0], scale(f.s, w));
+                sums[side][1] = add(sums[side][1], scale(f.t, w));
             }
-            let side = usize::from(f.sign < 0.0);
-            let w = weight(corner as usize);
-            sums[side][0] = add(sums[side][0], scale(f.s, w));
-            sums[side][1] = add(sums[side][1], scale(f.t, w));
-        }
-        let strongest = usize::from(dot(sums[1][0], sums[1][0]) > dot(sums[0][0], sums[0][0]));
-        for (k, &corner) in corners.iter().enumerate() {
-            let f = &faces[corner as usize / 3];
-            let side = if f.sign == 0.0 {
-                strongest
-            } else {
-                usize::from(f.sign < 0.0)
-            };
-            let tangent = normalize_or_zero(reject(sums[side][0], normal));
-            let handedness = dot(cross(normal, tangent), sums[side][1]);
-            let orientation_preserving = if handedness != 0.0 {
-                handedness > 0.0
-            } else {
-                side == 0
-            };
-            out[k] = encode(tangent, orientation_preserving);
-        }
-    };
+            let strongest = usize::from(dot(sums[1][0], sums[1][0]) > dot(sums[0][0], sums[0][0]));
+            for &corner in corners {
+                let corner = corner as usize;
+                let f = &faces[corner / 3];
+                let side = if f.sign == 0.0 {
+                    strongest
+                } else {
+                    usize::from(f.sign < 0.0)
+                };
+                let tangent = normalize_or_zero(reject(sums[side][0], normal));
+                let handedness = dot(cross(normal, tangent), sums[side][1]);
+                let orientation_preserving = if handedness != 0.0 {
+                    handedness > 0.0
+                } else {
+                    side == 0
+                };
+                let mut t = encode(tangent, orientation_preserving);
+                if !(normal_ok && fallback::passes(&t, normal)) {
+                    if let Some(problem) = fallback::repair_corner(mesh, corner, &mut t) {
+                        repairs.push((corner as u32, problem));
+                    }
+                }
+                if flip_w {
+                    t[3] = -t[3];
+                }
+                put(corner, t);
+            }
+        };
 
-    let mut results = vec![UNASSIGNED; table.corners.len()];
-    let pieces = if parallel {
-        rayon::current_num_threads() * 16
-    } else {
-        1
-    };
-    let pieces = table.split_by_class(&mut results, pieces);
-    let run = |(range, out): (std::ops::Range<usize>, &mut [[f32; 4]])| {
-        let base = table.offsets[range.start] as usize;
+    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count());
+    let run = |range: std::ops::Range<usize>| {
+        let mut copies = Copies::default();
+        let mut repairs = Vec::new();
+        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
         for class in range {
-            let span =
-                table.offsets[class] as usize - base..table.offsets[class + 1] as usize - base;
-            if !span.is_empty() {
-                evaluate(class, &mut out[span]);
+            if !table.of(class).is_empty() {
+                evaluate(class, &mut repairs, &mut put);
             }
         }
+        (copies, repairs)
     };
-    if parallel {
-        pieces.into_par_iter().for_each(run);
+    let results: Vec<(Copies, Vec<(u32, Problem)>)> = if parallel {
+        table
+            .chunks(rayon::current_num_threads() * 16)
+            .into_par_iter()
+            .map(run)
+            .collect()
     } else {
-        pieces.into_iter().for_each(run);
+        vec![run(0..weld.class_count)]
+    };
+    let mut parts = Vec::with_capacity(results.len());
+    let mut all_repairs = Vec::new();
+    for (copies, repairs) in results {
+        parts.push(copies);
+        all_repairs.extend(repairs);
     }
-
-    table
-        .slot_of_corner(mesh.indices.len())
-        .iter()
-        .map(|&slot| results[slot as usize])
-        .collect()
+    diagnostics.fallback_tangents = FallbackCounts::from_unordered(all_repairs);
+    shared.finish(parts, mesh.normals, diagnostics)
 }

@@ -283,22 +283,28 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
             &triangle_check,
             &mut diagnostics,
         ),
-        Method::Fast | Method::Axis => {
+        Method::Fast => {
             diagnostics.set_triangles(diagnostics::analyze_triangles(
                 &mesh,
                 &triangle_check,
                 options.parallel,
             ));
-            let mut corners = match options.method {
-                Method::Fast => fast::generate(&mesh, options.weighting, options.parallel),
-                _ => axis::generate(&mesh),
-            };
+            fast::generate(
+                &mesh,
+                options.weighting,
+                options.parallel,
+                flip_w,
+                &mut diagnostics,
+            )
+        }
+        Method::Axis => {
+            diagnostics.set_triangles(diagnostics::analyze_triangles(
+                &mesh,
+                &triangle_check,
+                options.parallel,
+            ));
+            let mut corners = axis::generate(&mesh);
             diagnostics.fallback_tangents = fallback::repair(&mesh, &mut corners, options.parallel);
-            if flip_w {
-                for t in &mut corners {
-                    t[3] = -t[3];
-                }
-            }
             split::plan(
                 mesh.indices,
                 mesh.vertex_count(),
@@ -308,7 +314,6 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
             )
         }
     };
-
     let mut out_normals = None;
     if let Some(generated) = &generated {
         // Express the plan in terms of the caller's vertices, and hand back the normals.

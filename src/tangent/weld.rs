@@ -251,35 +251,6 @@ impl CornerTable {
         CornerTable { offsets, corners }
     }
 
-    /// For every corner, its place in `corners` (`NONE` for corners left out).
-    pub fn slot_of_corner(&self, corner_count: usize) -> Vec<u32> {
-        let mut slots = vec![NONE; corner_count];
-        for (slot, &corner) in self.corners.iter().enumerate() {
-            slots[corner as usize] = slot as u32;
-        }
-        slots
-    }
-
-    /// Cuts `per_slot` (one entry per place in `corners`) into pieces that each cover whole
-    /// classes, about one piece per `pieces`, so that every vertex's entries can be written by
-    /// one worker without sharing.
-    pub fn split_by_class<'a, T>(
-        &self,
-        per_slot: &'a mut [T],
-        pieces: usize,
-    ) -> Vec<(std::ops::Range<usize>, &'a mut [T])> {
-        let chunks = self.chunks(pieces);
-        let mut out = Vec::with_capacity(chunks.len());
-        let mut rest = per_slot;
-        for range in chunks {
-            let len = (self.offsets[range.end] - self.offsets[range.start]) as usize;
-            let (head, tail) = rest.split_at_mut(len);
-            out.push((range, head));
-            rest = tail;
-        }
-        out
-    }
-
     /// Splits the classes into about `pieces` ranges holding similar numbers of corners.
     pub fn chunks(&self, pieces: usize) -> Vec<std::ops::Range<usize>> {
         let class_count = self.offsets.len() - 1;
