@@ -146,6 +146,29 @@ pub(crate) fn repair_corner(
     Some(problem)
 }
 
+/// The last step of a method's corner, shared by the methods that build the split plan as they
+/// go: repair unless already `known_valid` (recording why in `repairs`), then apply the
+/// UV-origin convention to `w`.
+#[inline]
+pub(crate) fn finish_corner(
+    mesh: &Mesh<'_>,
+    corner: usize,
+    mut tangent: [f32; 4],
+    known_valid: bool,
+    flip_w: bool,
+    repairs: &mut Vec<(u32, Problem)>,
+) -> [f32; 4] {
+    if !known_valid {
+        if let Some(problem) = repair_corner(mesh, corner, &mut tangent) {
+            repairs.push((corner as u32, problem));
+        }
+    }
+    if flip_w {
+        tangent[3] = -tangent[3];
+    }
+    tangent
+}
+
 /// Replaces every invalid tangent and counts what was replaced.
 pub(crate) fn repair(mesh: &Mesh<'_>, corners: &mut [[f32; 4]], parallel: bool) -> FallbackCounts {
     const CHUNK: usize = 16384;

@@ -144,16 +144,12 @@ pub(crate) fn generate(
                 } else {
                     side == 0
                 };
-                let mut t = encode(tangent, orientation_preserving);
-                if !(normal_ok && fallback::passes(&t, normal)) {
-                    if let Some(problem) = fallback::repair_corner(mesh, corner, &mut t) {
-                        repairs.push((corner as u32, problem));
-                    }
-                }
-                if flip_w {
-                    t[3] = -t[3];
-                }
-                put(corner, t);
+                let t = encode(tangent, orientation_preserving);
+                let valid = normal_ok && fallback::passes(&t, normal);
+                put(
+                    corner,
+                    fallback::finish_corner(mesh, corner, t, valid, flip_w, repairs),
+                );
             }
         };
 

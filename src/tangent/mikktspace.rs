@@ -464,19 +464,19 @@ impl Context<'_> {
     fn finish_corner<P: FnMut(usize, [f32; 4])>(
         &self,
         corner: usize,
-        mut tangent: [f32; 4],
+        tangent: [f32; 4],
         known_valid: bool,
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
     ) {
-        if !known_valid {
-            if let Some(problem) = fallback::repair_corner(self.mesh, corner, &mut tangent) {
-                repairs.push((corner as u32, problem));
-            }
-        }
-        if self.flip_w {
-            tangent[3] = -tangent[3];
-        }
+        let tangent = fallback::finish_corner(
+            self.mesh,
+            corner,
+            tangent,
+            known_valid,
+            self.flip_w,
+            repairs,
+        );
         put(corner, tangent);
     }
 

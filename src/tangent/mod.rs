@@ -275,6 +275,15 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     };
     // Axis tangents have no UV handedness to convert.
     let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
+    // MikkTSpace checks the triangles in its own triangle pass; the others need a pass of their
+    // own.
+    if options.method != Method::MikkTSpace {
+        diagnostics.set_triangles(diagnostics::analyze_triangles(
+            &mesh,
+            &triangle_check,
+            options.parallel,
+        ));
+    }
     let mut split = match options.method {
         Method::MikkTSpace => mikktspace::generate(
             &mesh,
@@ -283,26 +292,14 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
             &triangle_check,
             &mut diagnostics,
         ),
-        Method::Fast => {
-            diagnostics.set_triangles(diagnostics::analyze_triangles(
-                &mesh,
-                &triangle_check,
-                options.parallel,
-            ));
-            fast::generate(
-                &mesh,
-                options.weighting,
-                options.parallel,
-                flip_w,
-                &mut diagnostics,
-            )
-        }
+        Method::Fast => fast::generate(
+            &mesh,
+            options.weighting,
+            options.parallel,
+            flip_w,
+            &mut diagnostics,
+        ),
         Method::Axis => {
-            diagnostics.set_triangles(diagnostics::analyze_triangles(
-                &mesh,
-                &triangle_check,
-                options.parallel,
-            ));
             let mut corners = axis::generate(&mesh);
             diagnostics.fallback_tangents = fallback::repair(&mesh, &mut corners, options.parallel);
             split::plan(
