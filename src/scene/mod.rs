@@ -8,4 +8,5 @@
 
 pub mod gltf;
 pub mod obj;
+pub mod obj_gltf;
 pub mod uri;

@@ -4,3 +4,4 @@
 pub mod accessor;
 pub mod glb;
 pub mod json;
+pub mod meshopt;

@@ -1,0 +1,1 @@
+//! OBJ (+ MTL) to a glTF document (in progress).
