@@ -441,6 +441,81 @@ pub fn read_indices(
     Ok(elements.into_iter().map(|[i]| i).collect())
 }
 
+/// The elements of any accessor as raw little-endian bytes, tightly packed (`element_size`
+/// apart, matrix columns padded to 4 bytes as the specification lays them out), with the sparse
+/// substitution applied. This is what copying an attribute into a new accessor of the same type
+/// needs: no conversion, so integer and normalized data keep every bit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RawElements {
+    pub element_size: usize,
+    pub bytes: Vec<u8>,
+}
+
+impl RawElements {
+    /// The bytes of element `index`, if there is one.
+    pub fn element(&self, index: usize) -> Option<&[u8]> {
+        let start = index.checked_mul(self.element_size)?;
+        self.bytes.get(start..start.checked_add(self.element_size)?)
+    }
+
+    pub fn len(&self) -> usize {
+        self.bytes.len().checked_div(self.element_size).unwrap_or(0)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Reads every element of `accessor` as raw bytes; see [`RawElements`].
+pub fn read_raw(
+    accessor: &Accessor<'_>,
+    max_elements: usize,
+) -> Result<RawElements, AccessorError> {
+    let layout = Layout::of(accessor.component_type, accessor.element_type);
+    // One monomorphization per (component size, component count) pair, all going through the
+    // same checked `decode` as the typed readers.
+    macro_rules! raw {
+        ($s:literal, $($n:literal),+) => {
+            match accessor.element_type.components() {
+                $($n => pack(&layout, decode::<[u8; $s], $s, $n>(accessor, max_elements, |b| b)?),)+
+                _ => unreachable!("element types have 1, 2, 3, 4, 9 or 16 components"),
+            }
+        };
+    }
+    let bytes = match layout.component_size {
+        1 => raw!(1, 1, 2, 3, 4, 9, 16),
+        2 => raw!(2, 1, 2, 3, 4, 9, 16),
+        _ => raw!(4, 1, 2, 3, 4, 9, 16),
+    };
+    Ok(RawElements {
+        element_size: layout.element_size,
+        bytes,
+    })
+}
+
+/// Lays decoded components out as the specification stores them (columns padded to 4 bytes).
+fn pack<const S: usize, const N: usize>(layout: &Layout, elements: Vec<[[u8; S]; N]>) -> Vec<u8> {
+    let mut out = vec![0u8; elements.len() * layout.element_size];
+    for (element, slot) in elements
+        .iter()
+        .zip(out.chunks_exact_mut(layout.element_size))
+    {
+        let mut components = element.iter();
+        for column in 0..layout.columns {
+            for row in 0..layout.rows {
+                let at = column * layout.column_stride + row * S;
+                if let (Some(component), Some(target)) =
+                    (components.next(), slot.get_mut(at..at + S))
+                {
+                    target.copy_from_slice(component);
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Byte layout of one element. Matrix columns start on 4-byte boundaries, so a MAT2 of bytes or a
 /// MAT3 of bytes or shorts has padding after each column.
 #[derive(Clone, Copy, Debug)]

@@ -840,6 +840,7 @@ enum NewValue {
 struct ArrayEdit {
     open: usize,
     elements: Vec<Range<usize>>,
+    removed: Vec<bool>,
     added: Vec<String>,
 }
 
@@ -930,17 +931,41 @@ impl<'d, 'a> Editor<'d, 'a> {
                 span: array.span.clone(),
             });
         };
+        let edit = self.array_edit(array, elements)?;
+        edit.added.push(text);
+        Ok(edit.elements.len() + edit.added.len() - 1)
+    }
+
+    /// Removes element `index` (with its comma) from `array`. Returns whether there was such an
+    /// element. Indices are those of the original array; later elements move down, which the
+    /// caller must reflect wherever they are referenced.
+    pub fn remove_element(&mut self, array: &Node, index: usize) -> Result<bool, EditError> {
+        let Some(elements) = array.as_array() else {
+            return Err(EditError::NotAnArray {
+                span: array.span.clone(),
+            });
+        };
+        let edit = self.array_edit(array, elements)?;
+        match edit.removed.get_mut(index) {
+            Some(removed) => {
+                *removed = true;
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+
+    fn array_edit(&mut self, array: &Node, elements: &[Node]) -> Result<&mut ArrayEdit, EditError> {
         self.check_span(&array.span)?;
-        let edit = self
+        Ok(self
             .arrays
             .entry(array.span.start)
             .or_insert_with(|| ArrayEdit {
                 open: array.span.start,
                 elements: elements.iter().map(|e| e.span.clone()).collect(),
+                removed: vec![false; elements.len()],
                 added: Vec::new(),
-            });
-        edit.added.push(text);
-        Ok(edit.elements.len() + edit.added.len() - 1)
+            }))
     }
 
     /// Appends an element to the array in member `key` of `object`, creating the member (as a
@@ -1165,6 +1190,35 @@ impl ObjectEdit {
 impl ArrayEdit {
     fn pieces(&self, source: &str, out: &mut Vec<(Range<usize>, String)>) -> Result<(), EditError> {
         let n = self.elements.len();
+        let removed = |i: usize| self.removed.get(i).copied().unwrap_or(false);
+        let start = |i: usize| self.elements.get(i).map_or(0, |e| e.start);
+        let end = |i: usize| self.elements.get(i).map_or(0, |e| e.end);
+        // As for object members: each run of removed elements takes one comma with it.
+        let mut i = 0;
+        while i < n {
+            if !removed(i) {
+                i += 1;
+                continue;
+            }
+            let first = i;
+            while i < n && removed(i) {
+                i += 1;
+            }
+            let last = i - 1;
+            let range = if first > 0 {
+                end(first - 1)..end(last)
+            } else if i < n {
+                start(first)..start(i)
+            } else {
+                start(first)..end(last)
+            };
+            slice(source, range.clone())?;
+            out.push((range, String::new()));
+        }
+        if self.added.is_empty() {
+            return Ok(());
+        }
+        let kept = (0..n).filter(|&i| !removed(i)).count();
         let (at, lead) = match self.elements.as_slice() {
             [] => (self.open + 1, ""),
             [only] => (only.end, slice(source, self.open + 1..only.start)?),
@@ -1175,7 +1229,7 @@ impl ArrayEdit {
         };
         let mut text = String::new();
         for (i, item) in self.added.iter().enumerate() {
-            if n > 0 || i > 0 {
+            if kept > 0 || i > 0 {
                 text.push(',');
                 text.push_str(lead);
             }
@@ -1484,6 +1538,41 @@ mod tests {
             doc.editor().append_element(doc.root(), "1"),
             Err(EditError::NotAnArray { .. })
         ));
+    }
+
+    #[test]
+    fn remove_elements_keeps_commas_right() {
+        // (input, indices to remove, element to append or none, expected)
+        let cases: [(&str, &[usize], Option<&str>, &str); 9] = [
+            ("[1]", &[0], None, "[]"),
+            ("[1, 2, 3]", &[1], None, "[1, 3]"),
+            ("[1, 2, 3]", &[0], None, "[2, 3]"),
+            ("[1, 2, 3]", &[2], None, "[1, 2]"),
+            ("[1, 2, 3]", &[0, 2], None, "[2]"),
+            ("[1, 2, 3]", &[0, 1, 2], None, "[]"),
+            ("[1, 2, 3]", &[2], Some("9"), "[1, 2, 9]"),
+            ("[1, 2, 3]", &[0, 1, 2], Some("9"), "[9]"),
+            (
+                "[\n  {\"a\": [1]},\n  2\n]",
+                &[0],
+                Some("3"),
+                "[\n  2,\n  3\n]",
+            ),
+        ];
+        for (input, remove, append, expected) in cases {
+            let out = edited(input, |doc, ed| {
+                for &i in remove {
+                    assert!(ed.remove_element(doc.root(), i).unwrap());
+                }
+                if let Some(text) = append {
+                    ed.append_element(doc.root(), text).unwrap();
+                }
+            });
+            assert_eq!(out, expected, "{input:?} without {remove:?}");
+            assert!(parse(&out).is_ok());
+        }
+        let doc = parse("[1]").unwrap();
+        assert!(!doc.editor().remove_element(doc.root(), 1).unwrap());
     }
 
     #[test]
