@@ -4,6 +4,7 @@
 pub mod meshes;
 #[path = "../../benches/shapes.rs"]
 pub mod shapes;
+pub mod validator;
 
 /// Runs the reference (`bevy_mikktspace` 1.0, a byte-exact port of the C code) on an indexed
 /// mesh. `None` marks corners the reference leaves at its default.
