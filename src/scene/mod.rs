@@ -6,7 +6,9 @@
 //! Everything here reads untrusted bytes. Nothing panics on them, every allocation is bounded by
 //! the bytes actually present or by an explicit limit, and every recursion has a depth limit.
 
+pub mod error;
 pub mod gltf;
 pub mod obj;
 pub mod obj_gltf;
+pub mod report;
 pub mod uri;

@@ -1,0 +1,387 @@
+//! Reading a primitive's geometry and running the tangent core on it: once per distinct set of
+//! accessors, for the base mesh and for every morph target that moves it, and the audit of
+//! tangents a file already has.
+
+use super::accessor::{self, AccessorError, ComponentType};
+use super::json::Node;
+use super::plan::{GeometryKey, Topology};
+use crate::scene::error::SceneError;
+use crate::scene::report::{Audit, TallyReport};
+use crate::tangent::{self, CoreError, MeshInput, Options, Tally, Tangents};
+
+/// Limits on the geometry one scene may hold.
+#[derive(Clone, Copy, Debug)]
+pub struct GeometryLimits {
+    /// The most vertices one accessor may have.
+    pub max_vertices: usize,
+    /// The most triangles in the whole scene (counted over computations).
+    pub max_triangles: usize,
+}
+
+/// The geometry of one [`GeometryKey`], as the core takes it.
+pub struct Geometry {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub uvs: Option<Vec<[f32; 2]>>,
+    /// A triangle list (strips and fans unrolled), or `None` for non-indexed triangles.
+    pub indices: Option<Vec<u32>>,
+}
+
+impl Geometry {
+    pub fn input(&self) -> MeshInput<'_> {
+        MeshInput {
+            positions: &self.positions,
+            normals: self.normals.as_deref(),
+            uvs: self.uvs.as_deref(),
+            indices: self.indices.as_deref(),
+        }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.indices.as_ref().map_or(self.positions.len(), Vec::len) / 3
+    }
+
+    /// The vertex of each corner.
+    pub fn corner_vertex(&self, corner: usize) -> usize {
+        self.indices
+            .as_ref()
+            .map_or(corner, |i| i.get(corner).map_or(0, |&v| v as usize))
+    }
+}
+
+/// The result of one computation.
+pub struct Computed {
+    pub geometry: Geometry,
+    pub tangents: Tangents,
+    /// Per morph target: tangent deltas per output vertex, when the target moves POSITION or
+    /// NORMAL.
+    pub target_deltas: Vec<Option<Vec<[f32; 3]>>>,
+    pub morph_handedness_changes: u64,
+}
+
+impl Computed {
+    /// True when the primitive's vertices, indices and mode can stay as they are: nothing was
+    /// split, no normals were generated, and no strip or fan had to be unrolled.
+    pub fn keeps_vertices(&self, topology: Topology) -> bool {
+        topology == Topology::Triangles
+            && self.tangents.normals.is_none()
+            && self.tangents.split.source_vertex.len() == self.geometry.positions.len()
+    }
+}
+
+pub fn accessor_error(error: AccessorError) -> SceneError {
+    match error {
+        AccessorError::TooManyElements { .. } => {
+            SceneError::too_large("too-many-vertices", error.to_string())
+        }
+        _ => SceneError::malformed("invalid-accessor", error.to_string()),
+    }
+}
+
+fn core_error(path: &str, error: CoreError) -> SceneError {
+    match error {
+        CoreError::TooLarge { .. } => {
+            SceneError::too_large("too-many-vertices", format!("{path}: {error}"))
+        }
+        _ => SceneError::malformed("invalid-primitive", format!("{path}: {error}")),
+    }
+}
+
+/// Unit normals from a quantized accessor (normalized integers are not unit after decoding).
+fn read_normals(
+    root: &Node,
+    index: usize,
+    buffers: &[&[u8]],
+    limits: &GeometryLimits,
+) -> Result<Vec<[f32; 3]>, SceneError> {
+    let described = accessor::accessor_from_json(root, index, buffers).map_err(accessor_error)?;
+    let mut normals =
+        accessor::read_floats::<3>(&described, limits.max_vertices).map_err(accessor_error)?;
+    if described.component_type != ComponentType::F32 {
+        for n in &mut normals {
+            let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if length > 0.0 {
+                *n = [n[0] / length, n[1] / length, n[2] / length];
+            }
+        }
+    }
+    Ok(normals)
+}
+
+/// Turns strips and fans into triangle lists (glTF 2.0 §3.7.2.1), and checks a list's length.
+fn triangle_list(
+    topology: Topology,
+    indices: Option<Vec<u32>>,
+    vertex_count: usize,
+) -> Option<Vec<u32>> {
+    let sequence =
+        |indices: Option<Vec<u32>>| indices.unwrap_or_else(|| (0..vertex_count as u32).collect());
+    match topology {
+        Topology::Triangles => indices,
+        Topology::Strip => {
+            let s = sequence(indices);
+            let n = s.len().saturating_sub(2);
+            let mut out = Vec::with_capacity(n * 3);
+            for i in 0..n {
+                // Every other triangle is wound the other way so that all face the same side.
+                let (a, b) = if i % 2 == 0 { (1, 2) } else { (2, 1) };
+                out.extend([s[i], s[i + a], s[i + b]]);
+            }
+            Some(out)
+        }
+        Topology::Fan => {
+            let s = sequence(indices);
+            let n = s.len().saturating_sub(2);
+            let mut out = Vec::with_capacity(n * 3);
+            for i in 0..n {
+                out.extend([s[i + 1], s[i + 2], s[0]]);
+            }
+            Some(out)
+        }
+    }
+}
+
+/// Reads the geometry a key names.
+pub fn read_geometry(
+    root: &Node,
+    key: &GeometryKey,
+    buffers: &[&[u8]],
+    limits: &GeometryLimits,
+) -> Result<Geometry, SceneError> {
+    let positions =
+        accessor::read_floats_json::<3>(root, key.position, buffers, limits.max_vertices)
+            .map_err(accessor_error)?;
+    let normals = key
+        .normal
+        .map(|n| read_normals(root, n, buffers, limits))
+        .transpose()?;
+    let uvs = key
+        .texcoord
+        .map(|t| accessor::read_floats_json::<2>(root, t, buffers, limits.max_vertices))
+        .transpose()
+        .map_err(accessor_error)?;
+    // Index lists are bounded by corners, which may be up to three per triangle.
+    let max_corners = limits.max_triangles.saturating_mul(3);
+    let indices = key
+        .indices
+        .map(|i| accessor::read_indices_json(root, i, buffers, max_corners))
+        .transpose()
+        .map_err(accessor_error)?;
+    let indices = triangle_list(key.topology, indices, positions.len());
+    Ok(Geometry {
+        positions,
+        normals,
+        uvs,
+        indices,
+    })
+}
+
+/// Runs the core on a key's geometry and on each of its morph targets.
+pub fn compute(
+    root: &Node,
+    key: &GeometryKey,
+    buffers: &[&[u8]],
+    options: &Options,
+    limits: &GeometryLimits,
+    path: &str,
+) -> Result<Computed, SceneError> {
+    let mut geometry = read_geometry(root, key, buffers, limits)?;
+    if let Some(indices) = &mut geometry.indices {
+        // A strip's leftover vertices and a list's stray ones are not triangles.
+        indices.truncate(indices.len() / 3 * 3);
+    } else if key.topology == Topology::Triangles && geometry.positions.len() % 3 != 0 {
+        return Err(SceneError::malformed(
+            "invalid-primitive",
+            format!(
+                "{path}: {} vertices without indices do not make whole triangles",
+                geometry.positions.len()
+            ),
+        ));
+    }
+    let tangents =
+        tangent::generate(&geometry.input(), options).map_err(|e| core_error(path, e))?;
+
+    let mut target_deltas = Vec::with_capacity(key.targets.len());
+    let mut morph_handedness_changes = 0;
+    for (t, &(position, normal)) in key.targets.iter().enumerate() {
+        if position.is_none() && normal.is_none() {
+            target_deltas.push(None);
+            continue;
+        }
+        let read3 = |index: Option<usize>| {
+            index
+                .map(|i| accessor::read_floats_json::<3>(root, i, buffers, limits.max_vertices))
+                .transpose()
+                .map_err(accessor_error)
+        };
+        let (dp, dn) = (read3(position)?, read3(normal)?);
+        let count = geometry.positions.len();
+        for (name, delta) in [("POSITION", &dp), ("NORMAL", &dn)] {
+            if delta.as_ref().is_some_and(|d| d.len() != count) {
+                return Err(SceneError::malformed(
+                    "invalid-primitive",
+                    format!("{path}.targets[{t}].{name} does not have one element per vertex"),
+                ));
+            }
+        }
+        let add = |a: &[[f32; 3]], d: &Option<Vec<[f32; 3]>>| -> Vec<[f32; 3]> {
+            match d {
+                None => a.to_vec(),
+                Some(d) => a
+                    .iter()
+                    .zip(d)
+                    .map(|(a, d)| [a[0] + d[0], a[1] + d[1], a[2] + d[2]])
+                    .collect(),
+            }
+        };
+        let morphed_positions = add(&geometry.positions, &dp);
+        let morphed_normals = geometry.normals.as_ref().map(|n| {
+            let mut m = add(n, &dn);
+            for v in &mut m {
+                let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                if l > 0.0 {
+                    *v = [v[0] / l, v[1] / l, v[2] / l];
+                }
+            }
+            m
+        });
+        let morphed = tangent::generate(
+            &MeshInput {
+                positions: &morphed_positions,
+                normals: morphed_normals.as_deref(),
+                uvs: geometry.uvs.as_deref(),
+                indices: geometry.indices.as_deref(),
+            },
+            options,
+        )
+        .map_err(|e| core_error(&format!("{path}.targets[{t}]"), e))?;
+        // Each output vertex of the base takes the morphed tangent of its first corner.
+        let base = &tangents.split;
+        let mut deltas = vec![[0.0f32; 3]; base.vertex_tangents.len()];
+        let mut seen = vec![false; base.vertex_tangents.len()];
+        for (corner, &v) in base.indices.iter().enumerate() {
+            let v = v as usize;
+            let (Some(done), Some(b)) = (seen.get_mut(v), base.vertex_tangents.get(v)) else {
+                continue;
+            };
+            let m = morphed.corner_tangent(corner);
+            if m[3] != b[3] {
+                morph_handedness_changes += 1;
+            }
+            if !*done {
+                *done = true;
+                deltas[v] = [m[0] - b[0], m[1] - b[1], m[2] - b[2]];
+            }
+        }
+        target_deltas.push(Some(deltas));
+    }
+    Ok(Computed {
+        geometry,
+        tangents,
+        target_deltas,
+        morph_handedness_changes,
+    })
+}
+
+fn angle_degrees(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let la = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let lb = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
+    if la == 0.0 || lb == 0.0 || !la.is_finite() || !lb.is_finite() {
+        return 180.0;
+    }
+    let cos = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (la * lb);
+    cos.clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// Compares a primitive's own tangents with MikkTSpace's.
+pub fn audit(existing: &[[f32; 4]], computed: &Computed, quantized: bool) -> Result<Audit, String> {
+    let geometry = &computed.geometry;
+    if existing.len() != geometry.positions.len() {
+        return Err("TANGENT does not have one element per vertex".into());
+    }
+    // Quantized tangents (8- or 16-bit) are only as unit and orthogonal as their precision.
+    let tolerance = if quantized { 2e-2 } else { 1e-3 };
+    let mut non_unit = Tally::default();
+    let mut non_orthogonal = Tally::default();
+    let mut invalid = Tally::default();
+    for (v, t) in existing.iter().enumerate() {
+        let xyz = [t[0], t[1], t[2]];
+        if !t.iter().all(|c| c.is_finite()) || t[3].abs() != 1.0 {
+            invalid.add(v as u32);
+            continue;
+        }
+        let length = (xyz[0] * xyz[0] + xyz[1] * xyz[1] + xyz[2] * xyz[2]).sqrt();
+        if (length - 1.0).abs() > tolerance {
+            non_unit.add(v as u32);
+        }
+        if let Some(n) = geometry.normals.as_ref().and_then(|n| n.get(v)) {
+            let ln = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if ln > 0.0 && length > 0.0 {
+                let cos = (xyz[0] * n[0] + xyz[1] * n[1] + xyz[2] * n[2]) / (ln * length);
+                if cos.abs() > tolerance {
+                    non_orthogonal.add(v as u32);
+                }
+            }
+        }
+    }
+    let corners = geometry.triangle_count() * 3;
+    let mut angles = Vec::with_capacity(corners);
+    let mut w_disagreements = Tally::default();
+    for corner in 0..corners {
+        let Some(e) = existing.get(geometry.corner_vertex(corner)) else {
+            continue;
+        };
+        let m = computed.tangents.corner_tangent(corner);
+        if (e[3] < 0.0) != (m[3] < 0.0) {
+            w_disagreements.add(corner as u32);
+        }
+        angles.push(angle_degrees([e[0], e[1], e[2]], [m[0], m[1], m[2]]));
+    }
+    let mut sorted = angles;
+    sorted.sort_unstable_by(f32::total_cmp);
+    let at = |q: f64| -> f32 {
+        if sorted.is_empty() {
+            return 0.0;
+        }
+        let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+        sorted.get(i).copied().unwrap_or(0.0)
+    };
+    let over_1 = sorted.iter().filter(|&&a| a > 1.0).count() as u64;
+    let verdict = if !invalid.is_empty() || !non_unit.is_empty() || !non_orthogonal.is_empty() {
+        "invalid"
+    } else if !w_disagreements.is_empty() || over_1 > 0 {
+        "differs"
+    } else {
+        "matches"
+    };
+    Ok(Audit {
+        verdict,
+        corners: corners as u64,
+        w_disagreements: TallyReport::from(&w_disagreements),
+        angle_median_degrees: at(0.5),
+        angle_p99_degrees: at(0.99),
+        angle_max_degrees: at(1.0),
+        corners_over_1_degree: over_1,
+        non_unit: TallyReport::from(&non_unit),
+        non_orthogonal: TallyReport::from(&non_orthogonal),
+        invalid: TallyReport::from(&invalid),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans_unroll_with_consistent_winding() {
+        let strip = triangle_list(Topology::Strip, None, 5).unwrap();
+        assert_eq!(strip, vec![0, 1, 2, 1, 3, 2, 2, 3, 4]);
+        let fan = triangle_list(Topology::Fan, Some(vec![7, 8, 9, 10]), 11).unwrap();
+        assert_eq!(fan, vec![8, 9, 7, 9, 10, 7]);
+        assert_eq!(
+            triangle_list(Topology::Strip, Some(vec![1, 2]), 3),
+            Some(vec![])
+        );
+        assert_eq!(triangle_list(Topology::Triangles, None, 3), None);
+    }
+}

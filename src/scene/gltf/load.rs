@@ -1,0 +1,316 @@
+//! A glTF or GLB in memory: the JSON document and the bytes of every buffer.
+//!
+//! Buffers come from the GLB's BIN chunk, from `data:` URIs, or from [`Resources`] the caller
+//! supplies (an upload's named parts, or on the command line the file's own folder). Nothing
+//! here opens a file or a connection: a URI reaches the outside only through the caller's
+//! `Resources`, and an upload's resources are the parts it carried.
+
+use super::glb::{self, Chunk};
+use super::json::{Document, Node};
+use crate::scene::error::SceneError;
+use crate::scene::uri::{self, PartSet, UriError};
+use std::borrow::Cow;
+
+/// Where the bytes a relative URI names come from.
+pub trait Resources<'a> {
+    /// The bytes `uri` (as written in the file, not a `data:` URI) names.
+    fn fetch(&self, uri: &str) -> Result<Cow<'a, [u8]>, UriError>;
+}
+
+impl<'a> Resources<'a> for PartSet<'a> {
+    fn fetch(&self, uri: &str) -> Result<Cow<'a, [u8]>, UriError> {
+        self.get(uri).map(Cow::Borrowed)
+    }
+}
+
+/// No resources at all: every URI that is not `data:` is missing.
+pub struct NoResources;
+
+impl<'a> Resources<'a> for NoResources {
+    fn fetch(&self, uri: &str) -> Result<Cow<'a, [u8]>, UriError> {
+        Err(UriError::MissingPart {
+            uri: uri.to_owned(),
+            available: 0,
+        })
+    }
+}
+
+/// The container the scene arrived in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Container {
+    Glb,
+    /// A `.gltf` JSON file.
+    Json,
+}
+
+/// Where one buffer's bytes came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BufferSource {
+    GlbBin,
+    DataUri,
+    /// A relative URI, resolved through [`Resources`].
+    External(String),
+    /// No `uri` and not the GLB's BIN: a buffer that holds no data of its own (an
+    /// `EXT_meshopt_compression` fallback buffer, filled in by decoding).
+    Empty,
+}
+
+/// One buffer: its bytes (cut to its declared `byteLength`) and where they came from.
+#[derive(Clone, Debug)]
+pub struct Buffer<'a> {
+    pub bytes: Cow<'a, [u8]>,
+    pub source: BufferSource,
+}
+
+/// A parsed scene: the document, its buffers and, for a GLB, the chunks after BIN.
+pub struct Loaded<'a> {
+    pub container: Container,
+    pub doc: Document<'a>,
+    pub buffers: Vec<Buffer<'a>>,
+    pub other_chunks: Vec<Chunk<'a>>,
+}
+
+impl<'a> Loaded<'a> {
+    /// Every buffer's bytes, indexed like `buffers`, as the accessor reader takes them.
+    pub fn buffer_slices(&self) -> Vec<&[u8]> {
+        self.buffers.iter().map(|b| b.bytes.as_ref()).collect()
+    }
+}
+
+/// Limits on what loading may allocate.
+#[derive(Clone, Copy, Debug)]
+pub struct LoadLimits {
+    /// The most bytes one buffer may declare (its data must also really be there, except for a
+    /// buffer that is filled by decoding).
+    pub max_buffer_bytes: usize,
+}
+
+/// Parses a GLB or `.gltf` (told apart by the GLB magic) and loads its buffers.
+pub fn load<'a>(
+    bytes: &'a [u8],
+    resources: &dyn Resources<'a>,
+    limits: &LoadLimits,
+) -> Result<Loaded<'a>, SceneError> {
+    let (container, json, bin, other_chunks) = if glb::is_glb(bytes) {
+        let parsed = glb::parse(bytes)
+            .map_err(|e| SceneError::malformed("malformed-glb", format!("not a valid GLB: {e}")))?;
+        (Container::Glb, parsed.json, parsed.bin, parsed.other_chunks)
+    } else {
+        (Container::Json, bytes, None, Vec::new())
+    };
+    let doc = Document::parse(json)
+        .map_err(|e| SceneError::malformed("malformed-json", format!("the glTF JSON is {e}")))?;
+    check_asset(doc.root())?;
+    let buffers = load_buffers(doc.root(), container, bin, resources, limits)?;
+    Ok(Loaded {
+        container,
+        doc,
+        buffers,
+        other_chunks,
+    })
+}
+
+fn check_asset(root: &Node) -> Result<(), SceneError> {
+    if root.as_object().is_none() {
+        return Err(SceneError::malformed(
+            "malformed-gltf",
+            format!("a glTF document is a JSON object, not {}", root.kind_name()),
+        ));
+    }
+    let version = root
+        .get("asset")
+        .and_then(|a| a.get("version"))
+        .and_then(Node::as_str);
+    match version {
+        None => Err(SceneError::malformed(
+            "malformed-gltf",
+            "asset.version is missing: this is not a glTF 2.0 document",
+        )),
+        Some(v) if v == "2.0" || v.starts_with("2.") => Ok(()),
+        Some(v) => Err(SceneError::unprocessable(
+            "unsupported-version",
+            format!("asset.version is {v:?}; tspace reads glTF 2.x"),
+        )),
+    }
+}
+
+fn load_buffers<'a>(
+    root: &Node,
+    container: Container,
+    bin: Option<&'a [u8]>,
+    resources: &dyn Resources<'a>,
+    limits: &LoadLimits,
+) -> Result<Vec<Buffer<'a>>, SceneError> {
+    let Some(list) = root.get("buffers") else {
+        return Ok(Vec::new());
+    };
+    let list = list.as_array().ok_or_else(|| {
+        SceneError::malformed("malformed-gltf", "buffers must be an array of objects")
+    })?;
+    let mut buffers = Vec::with_capacity(list.len());
+    for (index, buffer) in list.iter().enumerate() {
+        let path = format!("buffers[{index}]");
+        let declared = buffer
+            .get("byteLength")
+            .and_then(Node::as_u64)
+            .and_then(|n| usize::try_from(n).ok())
+            .filter(|&n| n >= 1)
+            .ok_or_else(|| {
+                SceneError::malformed(
+                    "malformed-gltf",
+                    format!("{path}.byteLength must be an integer of at least 1"),
+                )
+            })?;
+        if declared > limits.max_buffer_bytes {
+            return Err(SceneError::too_large(
+                "buffer-too-large",
+                format!(
+                    "{path} declares {declared} bytes; the limit is {}",
+                    limits.max_buffer_bytes
+                ),
+            ));
+        }
+        let uri = match buffer.get("uri") {
+            None => None,
+            Some(u) => Some(u.as_str().ok_or_else(|| {
+                SceneError::malformed("malformed-gltf", format!("{path}.uri must be a string"))
+            })?),
+        };
+        let (bytes, source): (Cow<'a, [u8]>, BufferSource) = match uri {
+            None if index == 0 && container == Container::Glb => {
+                let bin = bin.ok_or_else(|| {
+                    SceneError::malformed(
+                        "malformed-glb",
+                        "buffers[0] has no uri, so it is the GLB's BIN chunk, but the file has none",
+                    )
+                })?;
+                (Cow::Borrowed(bin), BufferSource::GlbBin)
+            }
+            None => (Cow::Borrowed(&[][..]), BufferSource::Empty),
+            Some(text) => match uri::decode_data_uri(text) {
+                Some(data) => {
+                    let data = data.map_err(|e| {
+                        SceneError::malformed("malformed-uri", format!("{path}.uri: {e}"))
+                    })?;
+                    (Cow::Owned(data.bytes), BufferSource::DataUri)
+                }
+                None => {
+                    let bytes = resources
+                        .fetch(text)
+                        .map_err(|e| resource_error(&path, e))?;
+                    (bytes, BufferSource::External(text.to_owned()))
+                }
+            },
+        };
+        let bytes = match source {
+            BufferSource::Empty => bytes,
+            _ if bytes.len() < declared => {
+                return Err(SceneError::malformed(
+                    "buffer-too-short",
+                    format!(
+                        "{path} declares {declared} bytes but its data has only {}",
+                        bytes.len()
+                    ),
+                ));
+            }
+            // Padding (a BIN chunk's) or trailing bytes are not part of the buffer.
+            _ => match bytes {
+                Cow::Borrowed(b) => Cow::Borrowed(&b[..declared]),
+                Cow::Owned(mut v) => {
+                    v.truncate(declared);
+                    Cow::Owned(v)
+                }
+            },
+        };
+        buffers.push(Buffer { bytes, source });
+    }
+    Ok(buffers)
+}
+
+/// The error for a URI that could not be resolved: missing or refused is the caller's omission
+/// (422), a malformed URI is a malformed file (400).
+pub fn resource_error(path: &str, error: UriError) -> SceneError {
+    match error {
+        UriError::MissingPart { .. } => {
+            SceneError::unprocessable("missing-resource", format!("{path}.uri: {error}"))
+        }
+        UriError::Refused { .. } => {
+            SceneError::unprocessable("refused-uri", format!("{path}.uri: {error}"))
+        }
+        _ => SceneError::malformed("malformed-uri", format!("{path}.uri: {error}")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: LoadLimits = LoadLimits {
+        max_buffer_bytes: 1 << 20,
+    };
+
+    fn fixture(path: &str) -> Vec<u8> {
+        let full = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/");
+        std::fs::read(format!("{full}{path}")).expect("fixture")
+    }
+
+    #[test]
+    fn glb_buffer_is_the_bin_chunk_cut_to_its_length() {
+        let bytes = fixture("Box/Box.glb");
+        let loaded = load(&bytes, &NoResources, &LIMITS).unwrap();
+        assert_eq!(loaded.container, Container::Glb);
+        assert_eq!(loaded.buffers.len(), 1);
+        assert_eq!(loaded.buffers[0].source, BufferSource::GlbBin);
+        assert_eq!(loaded.buffers[0].bytes.len(), 648);
+    }
+
+    #[test]
+    fn external_buffers_come_from_parts_and_missing_ones_are_named() {
+        let gltf = fixture("Avocado/Avocado.gltf");
+        let bin = fixture("Avocado/Avocado.bin");
+        let error = load(&gltf, &NoResources, &LIMITS).err().unwrap();
+        assert_eq!(error.code, "missing-resource");
+        assert!(error.message.contains("Avocado.bin"), "{}", error.message);
+
+        let mut parts = PartSet::new();
+        parts.insert("Avocado.bin", &bin).unwrap();
+        let loaded = load(&gltf, &parts, &LIMITS).unwrap();
+        assert_eq!(
+            loaded.buffers[0].source,
+            BufferSource::External("Avocado.bin".into())
+        );
+        assert_eq!(loaded.buffers[0].bytes.len(), bin.len());
+    }
+
+    #[test]
+    fn data_uri_buffers_decode_and_short_data_is_refused() {
+        let gltf = fixture("BoxTextured_embedded/BoxTextured.gltf");
+        let loaded = load(&gltf, &NoResources, &LIMITS).unwrap();
+        assert_eq!(loaded.buffers[0].source, BufferSource::DataUri);
+
+        let short = br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":8,"uri":"data:application/octet-stream;base64,AAAA"}]}"#;
+        let error = load(short, &NoResources, &LIMITS).err().unwrap();
+        assert_eq!(error.code, "buffer-too-short");
+    }
+
+    #[test]
+    fn bad_documents_are_refused_with_reasons() {
+        let cases: [(&[u8], &str); 5] = [
+            (b"{", "malformed-json"),
+            (b"[]", "malformed-gltf"),
+            (br#"{"asset":{}}"#, "malformed-gltf"),
+            (br#"{"asset":{"version":"1.0"}}"#, "unsupported-version"),
+            (
+                br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":1e30}]}"#,
+                "malformed-gltf",
+            ),
+        ];
+        for (bytes, code) in cases {
+            let error = load(bytes, &NoResources, &LIMITS).err().unwrap();
+            assert_eq!(error.code, code, "{}", String::from_utf8_lossy(bytes));
+        }
+        let huge = br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":2000000}]}"#;
+        let error = load(huge, &NoResources, &LIMITS).err().unwrap();
+        assert_eq!(error.code, "buffer-too-large");
+    }
+}

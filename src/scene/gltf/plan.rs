@@ -1,0 +1,420 @@
+//! Which primitives get tangents, from which texture-coordinate set, and which share work.
+//!
+//! A primitive gets tangents when it is made of triangles, its material uses a tangent frame
+//! (`normalTexture`, `KHR_materials_clearcoat`'s `clearcoatNormalTexture`, or
+//! `KHR_materials_anisotropy`), and it has no `TANGENT` yet. `all` drops the material test,
+//! `overwrite` recomputes existing tangents. A primitive that keeps its tangents is audited
+//! against MikkTSpace instead when its material uses them. Every other primitive is skipped with a
+//! reason. Primitives with the same mode, indices, `POSITION`, `NORMAL`, texture coordinates and
+//! morph targets are computed once.
+
+use super::json::Node;
+
+/// How a primitive's triangles are laid out (`mode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Topology {
+    Triangles,
+    Strip,
+    Fan,
+}
+
+/// Why a primitive gets no tangents.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SkipReason {
+    /// POINTS or LINES (or an unknown mode).
+    NotTriangles {
+        mode: u64,
+    },
+    /// No material, so the default material, which has no normal map.
+    NoMaterial,
+    /// Its material has no normal map, clearcoat normal map or anisotropy.
+    NoNormalMap,
+    /// It has TANGENT and `overwrite` was not asked for, and its material does not use it.
+    HasTangents,
+    NoPositions,
+    /// The texture-coordinate set the material names (or 0) is not there.
+    NoTexcoords {
+        set: u32,
+    },
+}
+
+impl SkipReason {
+    /// A stable code for reports.
+    pub fn code(self) -> &'static str {
+        match self {
+            SkipReason::NotTriangles { .. } => "not_triangles",
+            SkipReason::NoMaterial => "no_material",
+            SkipReason::NoNormalMap => "no_normal_map",
+            SkipReason::HasTangents => "has_tangents",
+            SkipReason::NoPositions => "no_positions",
+            SkipReason::NoTexcoords { .. } => "no_texcoords",
+        }
+    }
+
+    pub fn message(self) -> String {
+        match self {
+            SkipReason::NotTriangles { mode } => format!(
+                "mode {mode} is not TRIANGLES, TRIANGLE_STRIP or TRIANGLE_FAN; points and lines have no tangent frame"
+            ),
+            SkipReason::NoMaterial => {
+                "no material, so no normal map (use `all` to compute tangents anyway)".into()
+            }
+            SkipReason::NoNormalMap => "its material has no normal map, clearcoat normal map or anisotropy (use `all` to compute tangents anyway)".into(),
+            SkipReason::HasTangents => {
+                "it already has TANGENT and its material does not use it".into()
+            }
+            SkipReason::NoPositions => "it has no POSITION attribute".into(),
+            SkipReason::NoTexcoords { set } => format!(
+                "its normal map reads TEXCOORD_{set}, which the primitive does not have; ask for the axis method to get tangents without texture coordinates"
+            ),
+        }
+    }
+}
+
+/// What happens to one primitive.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// Compute tangents (replacing existing ones when `overwrite` is set).
+    Generate,
+    /// Keep the existing tangents and compare them with MikkTSpace.
+    Audit,
+    Skip(SkipReason),
+}
+
+/// The accessors a computation reads: primitives with equal keys share one result.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct GeometryKey {
+    pub topology: Topology,
+    pub indices: Option<usize>,
+    pub position: usize,
+    pub normal: Option<usize>,
+    /// `None` only for the axis method.
+    pub texcoord: Option<usize>,
+    /// Per morph target: its POSITION and NORMAL accessors.
+    pub targets: Vec<(Option<usize>, Option<usize>)>,
+}
+
+/// The decision for one primitive.
+#[derive(Clone, Debug)]
+pub struct PrimitivePlan {
+    pub mesh: usize,
+    pub primitive: usize,
+    pub mesh_name: Option<String>,
+    pub material: Option<usize>,
+    /// The texture-coordinate set the tangent frame follows.
+    pub texcoord_set: u32,
+    /// What in the material asked for a tangent frame (`normalTexture`…), if anything.
+    pub uses: Option<&'static str>,
+    pub had_tangents: bool,
+    pub action: Action,
+    /// Set for [`Action::Generate`] and [`Action::Audit`].
+    pub key: Option<GeometryKey>,
+    /// Notes for the report (a texture transform on the normal map, conflicting UV sets).
+    pub notes: Vec<String>,
+}
+
+/// Options that change the decisions.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PlanOptions {
+    pub overwrite: bool,
+    pub all: bool,
+    /// The axis method needs no texture coordinates.
+    pub axis: bool,
+}
+
+/// What a material says about tangents: whether it uses a frame, for which feature, on which
+/// texture-coordinate set, and any notes.
+struct MaterialUse {
+    uses: Option<&'static str>,
+    set: u32,
+    notes: Vec<String>,
+}
+
+fn texture_set(info: &Node) -> u32 {
+    // KHR_texture_transform may override the set the texture reads.
+    let overridden = info
+        .get("extensions")
+        .and_then(|e| e.get("KHR_texture_transform"))
+        .and_then(|t| t.get("texCoord"))
+        .and_then(Node::as_u64);
+    let set = overridden.or_else(|| info.get("texCoord").and_then(Node::as_u64));
+    set.and_then(|s| u32::try_from(s).ok()).unwrap_or(0)
+}
+
+fn material_use(material: Option<&Node>) -> MaterialUse {
+    let mut out = MaterialUse {
+        uses: None,
+        set: 0,
+        notes: Vec::new(),
+    };
+    let Some(material) = material else {
+        return out;
+    };
+    let extension = |name: &str| material.get("extensions").and_then(|e| e.get(name));
+    let mut candidates: Vec<(&'static str, Option<&Node>)> = Vec::new();
+    if let Some(info) = material.get("normalTexture") {
+        candidates.push(("normalTexture", Some(info)));
+    }
+    if let Some(clearcoat) = extension("KHR_materials_clearcoat") {
+        if let Some(info) = clearcoat.get("clearcoatNormalTexture") {
+            candidates.push(("KHR_materials_clearcoat.clearcoatNormalTexture", Some(info)));
+        }
+    }
+    if let Some(anisotropy) = extension("KHR_materials_anisotropy") {
+        candidates.push((
+            "KHR_materials_anisotropy",
+            anisotropy.get("anisotropyTexture"),
+        ));
+    }
+    // The normal map decides the set when there is one; the others follow it.
+    let Some(&(first, first_info)) = candidates.first() else {
+        return out;
+    };
+    out.uses = Some(first);
+    out.set = first_info.map_or(0, texture_set);
+    for (name, info) in &candidates[1..] {
+        if let Some(info) = info {
+            let set = texture_set(info);
+            if set != out.set {
+                out.notes.push(format!(
+                    "{name} reads TEXCOORD_{set} but {first} reads TEXCOORD_{}; tangents follow {first}",
+                    out.set
+                ));
+            }
+        }
+    }
+    if let Some(info) = first_info {
+        let transform = info
+            .get("extensions")
+            .and_then(|e| e.get("KHR_texture_transform"));
+        if let Some(transform) = transform {
+            let rotated = transform
+                .get("rotation")
+                .and_then(Node::as_f64)
+                .is_some_and(|r| r != 0.0);
+            let scaled = transform
+                .get("scale")
+                .and_then(Node::as_array)
+                .is_some_and(|s| s.iter().any(|v| v.as_f64().is_some_and(|v| v < 0.0)));
+            if rotated || scaled {
+                out.notes.push(format!(
+                    "{first} has a KHR_texture_transform that rotates or mirrors it; tangents follow the untransformed texture coordinates, as bakers see them"
+                ));
+            }
+        }
+    }
+    out
+}
+
+fn accessor_index(node: Option<&Node>) -> Option<usize> {
+    node.and_then(Node::as_u64)
+        .and_then(|n| usize::try_from(n).ok())
+}
+
+/// Decides every primitive of the document.
+pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
+    let materials = root
+        .get("materials")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
+    let mut plans = Vec::new();
+    for (mesh_index, mesh) in meshes.iter().enumerate() {
+        let mesh_name = mesh.get("name").and_then(Node::as_str).map(str::to_owned);
+        let primitives = mesh
+            .get("primitives")
+            .and_then(Node::as_array)
+            .unwrap_or(&[]);
+        for (primitive_index, primitive) in primitives.iter().enumerate() {
+            let material = accessor_index(primitive.get("material"));
+            // A material variant (KHR_materials_variants) that uses a frame counts as well.
+            let mut usage = material_use(material.and_then(|m| materials.get(m)));
+            if usage.uses.is_none() {
+                let variants = primitive
+                    .get("extensions")
+                    .and_then(|e| e.get("KHR_materials_variants"))
+                    .and_then(|v| v.get("mappings"))
+                    .and_then(Node::as_array)
+                    .unwrap_or(&[]);
+                for mapping in variants {
+                    let variant =
+                        accessor_index(mapping.get("material")).and_then(|m| materials.get(m));
+                    let candidate = material_use(variant);
+                    if candidate.uses.is_some() {
+                        usage = candidate;
+                        break;
+                    }
+                }
+            }
+            let attributes = primitive.get("attributes");
+            let attribute = |name: &str| accessor_index(attributes.and_then(|a| a.get(name)));
+            let had_tangents = attribute("TANGENT").is_some();
+            let mode = primitive.get("mode").and_then(Node::as_u64).unwrap_or(4);
+            let topology = match mode {
+                4 => Some(Topology::Triangles),
+                5 => Some(Topology::Strip),
+                6 => Some(Topology::Fan),
+                _ => None,
+            };
+            let texcoord = attribute(&format!("TEXCOORD_{}", usage.set));
+            let position = attribute("POSITION");
+
+            let action = match (topology, position) {
+                (None, _) => Action::Skip(SkipReason::NotTriangles { mode }),
+                (_, None) => Action::Skip(SkipReason::NoPositions),
+                _ if usage.uses.is_none() && !options.all => {
+                    if had_tangents && !options.overwrite {
+                        Action::Skip(SkipReason::HasTangents)
+                    } else if material.is_none() {
+                        Action::Skip(SkipReason::NoMaterial)
+                    } else {
+                        Action::Skip(SkipReason::NoNormalMap)
+                    }
+                }
+                _ if had_tangents && !options.overwrite => match texcoord {
+                    Some(_) => Action::Audit,
+                    None => Action::Skip(SkipReason::HasTangents),
+                },
+                _ if texcoord.is_none() && !options.axis => {
+                    Action::Skip(SkipReason::NoTexcoords { set: usage.set })
+                }
+                _ => Action::Generate,
+            };
+            let key = match (&action, topology, position) {
+                (Action::Generate | Action::Audit, Some(topology), Some(position)) => {
+                    let targets = primitive
+                        .get("targets")
+                        .and_then(Node::as_array)
+                        .unwrap_or(&[])
+                        .iter()
+                        .map(|t| {
+                            (
+                                accessor_index(t.get("POSITION")),
+                                accessor_index(t.get("NORMAL")),
+                            )
+                        })
+                        .collect();
+                    Some(GeometryKey {
+                        topology,
+                        indices: accessor_index(primitive.get("indices")),
+                        position,
+                        normal: attribute("NORMAL"),
+                        texcoord: if options.axis { None } else { texcoord },
+                        targets: if action == Action::Generate {
+                            targets
+                        } else {
+                            Vec::new()
+                        },
+                    })
+                }
+                _ => None,
+            };
+            plans.push(PrimitivePlan {
+                mesh: mesh_index,
+                primitive: primitive_index,
+                mesh_name: mesh_name.clone(),
+                material,
+                texcoord_set: usage.set,
+                uses: usage.uses,
+                had_tangents,
+                action,
+                key,
+                notes: usage.notes,
+            });
+        }
+    }
+    plans
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::gltf::json::Document;
+
+    fn plans(json: &str, options: PlanOptions) -> Vec<PrimitivePlan> {
+        let doc = Document::parse(json.as_bytes()).unwrap();
+        plan(doc.root(), &options)
+    }
+
+    const SCENE: &str = r#"{
+        "materials": [
+            {"name": "plain"},
+            {"normalTexture": {"index": 0, "texCoord": 1}},
+            {"extensions": {"KHR_materials_clearcoat": {"clearcoatNormalTexture": {"index": 0}}}},
+            {"extensions": {"KHR_materials_anisotropy": {"anisotropyStrength": 0.5}}},
+            {"normalTexture": {"index": 0, "texCoord": 0,
+                "extensions": {"KHR_texture_transform": {"texCoord": 1}}}}
+        ],
+        "meshes": [{"name": "m", "primitives": [
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 0},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "TEXCOORD_1": 2}, "material": 1},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 1},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 2, "mode": 5},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 3, "mode": 1},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "TANGENT": 3}, "material": 3},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "TEXCOORD_1": 2}, "material": 4},
+            {"attributes": {"TEXCOORD_0": 1}, "material": 3},
+            {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "extensions": {"KHR_materials_variants":
+                {"mappings": [{"material": 0, "variants": [0]}, {"material": 2, "variants": [1]}]}}}
+        ]}]
+    }"#;
+
+    #[test]
+    fn decisions_follow_the_material() {
+        let p = plans(SCENE, PlanOptions::default());
+        let actions: Vec<_> = p.iter().map(|p| p.action.clone()).collect();
+        assert_eq!(
+            actions,
+            vec![
+                Action::Skip(SkipReason::NoMaterial),
+                Action::Skip(SkipReason::NoNormalMap),
+                Action::Generate,
+                Action::Skip(SkipReason::NoTexcoords { set: 1 }),
+                Action::Generate,
+                Action::Skip(SkipReason::NotTriangles { mode: 1 }),
+                Action::Audit,
+                Action::Generate,
+                Action::Skip(SkipReason::NoPositions),
+                Action::Generate,
+            ]
+        );
+        assert_eq!(p[2].texcoord_set, 1);
+        assert_eq!(p[2].key.as_ref().unwrap().texcoord, Some(2));
+        assert_eq!(p[4].key.as_ref().unwrap().topology, Topology::Strip);
+        assert_eq!(p[6].uses, Some("KHR_materials_anisotropy"));
+        // KHR_texture_transform's texCoord overrides the texture's own.
+        assert_eq!(p[7].texcoord_set, 1);
+        assert_eq!(
+            p[9].uses,
+            Some("KHR_materials_clearcoat.clearcoatNormalTexture")
+        );
+        // Primitives 2 and 7 read the same accessors: one computation.
+        assert_eq!(p[2].key, p[7].key);
+        assert_ne!(p[2].key, p[4].key);
+    }
+
+    #[test]
+    fn options_widen_the_decisions() {
+        let p = plans(
+            SCENE,
+            PlanOptions {
+                overwrite: true,
+                all: true,
+                axis: false,
+            },
+        );
+        assert_eq!(p[0].action, Action::Generate);
+        assert_eq!(p[1].action, Action::Generate);
+        assert_eq!(p[6].action, Action::Generate);
+        let axis = plans(
+            SCENE,
+            PlanOptions {
+                axis: true,
+                ..PlanOptions::default()
+            },
+        );
+        assert_eq!(axis[3].action, Action::Generate);
+        assert_eq!(axis[3].key.as_ref().unwrap().texcoord, None);
+    }
+}

@@ -1,0 +1,1067 @@
+//! Writing a scene back: the input's JSON with only the members tspace changed spliced in, its
+//! buffers' bytes passed through, and new data in new buffer views.
+//!
+//! The output has one binary buffer (the GLB's BIN chunk, or a `data:` URI for `.gltf`) holding
+//! every input buffer that had data, then the new views. Buffers without data of their own
+//! (`EXT_meshopt_compression` fallbacks) stay as they are. When a split replaced a primitive's
+//! accessors and nothing else refers to the old ones, they and their views are dropped and the
+//! kept views are copied one by one, so the file does not carry dead data; every index reference
+//! is renumbered. That happens only when every extension in use is one whose references tspace
+//! knows ([`super::refs::KNOWN_EXTENSIONS`]) and the file is not meshopt-compressed; otherwise
+//! every byte and index stays where it was and the report says why.
+
+use super::accessor::{self, ComponentType, ElementType};
+use super::glb;
+use super::json::{self, Document, Editor, Node};
+use super::load::{BufferSource, Container, Loaded, Resources};
+use super::refs::{self, Owner};
+use crate::scene::error::SceneError;
+use crate::scene::report::Dropped;
+use crate::scene::uri;
+use std::collections::{BTreeMap, HashMap};
+
+/// The container to write.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum OutputFormat {
+    #[default]
+    Glb,
+    /// `.gltf` JSON with the buffer embedded as a `data:` URI.
+    GltfEmbedded,
+}
+
+impl OutputFormat {
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputFormat::Glb => "glb",
+            OutputFormat::GltfEmbedded => "gltf",
+        }
+    }
+}
+
+/// An accessor in the output: one of the input's, or one this write adds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Ref {
+    Old(usize),
+    New(usize),
+}
+
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+
+struct NewView {
+    data: Vec<u8>,
+    target: Option<u32>,
+    byte_stride: Option<usize>,
+}
+
+struct NewAccessor {
+    view: usize,
+    component_type: ComponentType,
+    element_type: ElementType,
+    normalized: bool,
+    count: usize,
+    min_max: Option<(String, String)>,
+}
+
+/// The changes to one primitive: members to set (attribute name → accessor), and so on.
+#[derive(Default)]
+pub struct PrimitiveEdit {
+    pub attributes: Vec<(String, Ref)>,
+    pub indices: Option<Ref>,
+    /// Set `mode` to TRIANGLES (a strip or fan was unrolled).
+    pub to_triangle_list: bool,
+    /// Per morph target: members to set.
+    pub targets: Vec<Vec<(String, Ref)>>,
+    /// Remove `KHR_draco_mesh_compression`: its compressed data no longer matches.
+    pub remove_draco: bool,
+}
+
+/// New accessors and views, and the changes to primitives, collected before anything is
+/// written.
+#[derive(Default)]
+pub struct Changes {
+    views: Vec<NewView>,
+    accessors: Vec<NewAccessor>,
+    pub primitives: BTreeMap<(usize, usize), PrimitiveEdit>,
+}
+
+fn float_text(v: f32) -> String {
+    json::f32_text(v).unwrap_or_else(|| "0".into())
+}
+
+impl Changes {
+    fn push_view(
+        &mut self,
+        data: Vec<u8>,
+        target: Option<u32>,
+        byte_stride: Option<usize>,
+    ) -> usize {
+        self.views.push(NewView {
+            data,
+            target,
+            byte_stride,
+        });
+        self.views.len() - 1
+    }
+
+    fn push_accessor(&mut self, accessor: NewAccessor) -> Ref {
+        self.accessors.push(accessor);
+        Ref::New(self.accessors.len() - 1)
+    }
+
+    /// A float vertex attribute (TANGENT, NORMAL, a morph target's TANGENT deltas).
+    pub fn add_floats<const N: usize>(&mut self, values: &[[f32; N]], with_min_max: bool) -> Ref {
+        let mut data = Vec::with_capacity(values.len() * N * 4);
+        for v in values {
+            for c in v {
+                data.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        let min_max = with_min_max.then(|| {
+            let mut lo = [f32::INFINITY; N];
+            let mut hi = [f32::NEG_INFINITY; N];
+            for v in values {
+                for i in 0..N {
+                    if v[i].is_finite() {
+                        lo[i] = lo[i].min(v[i]);
+                        hi[i] = hi[i].max(v[i]);
+                    }
+                }
+            }
+            let list = |a: [f32; N]| {
+                let items: Vec<String> = a
+                    .iter()
+                    .map(|&x| {
+                        if x.is_finite() {
+                            float_text(x)
+                        } else {
+                            "0".into()
+                        }
+                    })
+                    .collect();
+                format!("[{}]", items.join(","))
+            };
+            (list(lo), list(hi))
+        });
+        let view = self.push_view(data, Some(ARRAY_BUFFER), None);
+        let element_type = match N {
+            2 => ElementType::Vec2,
+            3 => ElementType::Vec3,
+            4 => ElementType::Vec4,
+            _ => ElementType::Scalar,
+        };
+        self.push_accessor(NewAccessor {
+            view,
+            component_type: ComponentType::F32,
+            element_type,
+            normalized: false,
+            count: values.len(),
+            min_max,
+        })
+    }
+
+    /// An index list, as 16-bit indices when every vertex fits (65535 is the restart value,
+    /// which glTF forbids), else 32-bit.
+    pub fn add_indices(&mut self, indices: &[u32], vertex_count: usize) -> Ref {
+        let (component_type, data) = if vertex_count <= 65535 {
+            let mut data = Vec::with_capacity(indices.len() * 2);
+            for &i in indices {
+                data.extend_from_slice(&(i as u16).to_le_bytes());
+            }
+            (ComponentType::U16, data)
+        } else {
+            let mut data = Vec::with_capacity(indices.len() * 4);
+            for &i in indices {
+                data.extend_from_slice(&i.to_le_bytes());
+            }
+            (ComponentType::U32, data)
+        };
+        let view = self.push_view(data, Some(ELEMENT_ARRAY_BUFFER), None);
+        self.push_accessor(NewAccessor {
+            view,
+            component_type,
+            element_type: ElementType::Scalar,
+            normalized: false,
+            count: indices.len(),
+            min_max: None,
+        })
+    }
+
+    /// Copies accessor `index` of the input, element `source[v]` for each new vertex `v`, into a
+    /// new accessor of the same type. Vertex elements start on 4-byte boundaries, as glTF
+    /// requires, so 3-byte or 6-byte elements get a stride.
+    pub fn add_remapped(
+        &mut self,
+        root: &Node,
+        buffers: &[&[u8]],
+        index: usize,
+        source: &[u32],
+        max_elements: usize,
+        is_position: bool,
+    ) -> Result<Ref, SceneError> {
+        let described = accessor::accessor_from_json(root, index, buffers)
+            .map_err(super::compute::accessor_error)?;
+        let raw =
+            accessor::read_raw(&described, max_elements).map_err(super::compute::accessor_error)?;
+        let size = raw.element_size;
+        let stride = size.next_multiple_of(4);
+        let mut data = vec![0u8; source.len() * stride];
+        for (slot, &s) in data.chunks_exact_mut(stride).zip(source) {
+            let element = raw.element(s as usize).ok_or_else(|| {
+                SceneError::malformed(
+                    "invalid-primitive",
+                    format!(
+                        "accessors[{index}] has {} elements but vertex {s} is used",
+                        raw.len()
+                    ),
+                )
+            })?;
+            slot[..size].copy_from_slice(element);
+        }
+        let had_min_max = root
+            .get("accessors")
+            .and_then(|a| a.index(index))
+            .is_some_and(|a| a.get("min").is_some() || a.get("max").is_some());
+        let min_max = (had_min_max || is_position)
+            .then(|| {
+                min_max_of(
+                    &data,
+                    stride,
+                    described.component_type,
+                    described.element_type,
+                )
+            })
+            .flatten();
+        let view = self.push_view(data, Some(ARRAY_BUFFER), (stride != size).then_some(stride));
+        Ok(self.push_accessor(NewAccessor {
+            view,
+            component_type: described.component_type,
+            element_type: described.element_type,
+            normalized: described.normalized,
+            count: source.len(),
+            min_max,
+        }))
+    }
+}
+
+/// Per-component minimum and maximum of vector or scalar elements, in the component type's own
+/// values (glTF's `min`/`max` ignore `normalized`). Matrices get none (they are optional there).
+fn min_max_of(
+    data: &[u8],
+    stride: usize,
+    component_type: ComponentType,
+    element_type: ElementType,
+) -> Option<(String, String)> {
+    let n = match element_type {
+        ElementType::Scalar => 1,
+        ElementType::Vec2 => 2,
+        ElementType::Vec3 => 3,
+        ElementType::Vec4 => 4,
+        _ => return None,
+    };
+    let size = component_type.size();
+    let value = |b: &[u8]| -> f64 {
+        match (component_type, b) {
+            (ComponentType::I8, [a, ..]) => f64::from(*a as i8),
+            (ComponentType::U8, [a, ..]) => f64::from(*a),
+            (ComponentType::I16, [a, b, ..]) => f64::from(i16::from_le_bytes([*a, *b])),
+            (ComponentType::U16, [a, b, ..]) => f64::from(u16::from_le_bytes([*a, *b])),
+            (ComponentType::U32, [a, b, c, d, ..]) => {
+                f64::from(u32::from_le_bytes([*a, *b, *c, *d]))
+            }
+            (ComponentType::F32, [a, b, c, d, ..]) => {
+                f64::from(f32::from_le_bytes([*a, *b, *c, *d]))
+            }
+            _ => 0.0,
+        }
+    };
+    let mut lo = vec![f64::INFINITY; n];
+    let mut hi = vec![f64::NEG_INFINITY; n];
+    for element in data.chunks_exact(stride) {
+        for i in 0..n {
+            let v = element.get(i * size..).map_or(0.0, value);
+            if v.is_finite() {
+                lo[i] = lo[i].min(v);
+                hi[i] = hi[i].max(v);
+            }
+        }
+    }
+    let text = |list: &[f64]| {
+        let items: Vec<String> = list
+            .iter()
+            .map(|&v| {
+                if !v.is_finite() {
+                    "0".into()
+                } else if component_type == ComponentType::F32 {
+                    float_text(v as f32)
+                } else {
+                    format!("{}", v as i64)
+                }
+            })
+            .collect();
+        format!("[{}]", items.join(","))
+    };
+    Some((text(&lo), text(&hi)))
+}
+
+/// What [`write`] produced.
+pub struct Written {
+    pub bytes: Vec<u8>,
+    pub dropped: Dropped,
+    pub warnings: Vec<String>,
+}
+
+fn edit_error(error: json::EditError) -> SceneError {
+    // Edits are made from the document's own nodes; failing here is a bug, reported as such.
+    SceneError::new(
+        crate::scene::error::ErrorClass::Unprocessable,
+        "internal-edit",
+        format!("tspace could not edit the document: {error}"),
+    )
+}
+
+fn usize_of(node: Option<&Node>) -> usize {
+    node.and_then(Node::as_u64)
+        .and_then(|n| usize::try_from(n).ok())
+        .unwrap_or(0)
+}
+
+fn align(offset: usize, to: usize) -> usize {
+    offset.next_multiple_of(to)
+}
+
+/// The MIME type of an image from its first bytes (never decoded), if glTF knows it.
+fn sniff_image(bytes: &[u8]) -> Option<&'static str> {
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some("image/png")
+    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        Some("image/jpeg")
+    } else if bytes.len() >= 12 && &bytes[0..4] == b"RIFF" && &bytes[8..12] == b"WEBP" {
+        Some("image/webp")
+    } else if bytes.starts_with(b"\xABKTX 20\xBB\r\n\x1a\n") {
+        Some("image/ktx2")
+    } else {
+        None
+    }
+}
+
+/// Writes the scene with `changes` applied.
+pub fn write(
+    loaded: &Loaded<'_>,
+    changes: &Changes,
+    format: OutputFormat,
+    resources: &dyn Resources<'_>,
+) -> Result<Written, SceneError> {
+    let root = loaded.doc.root();
+    let mut warnings = Vec::new();
+    let old_accessor_count = root
+        .get("accessors")
+        .and_then(Node::as_array)
+        .map_or(0, <[Node]>::len);
+    let old_view_list = root
+        .get("bufferViews")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let old_view_count = old_view_list.len();
+
+    // Which accessors the edits leave without a reference.
+    let accessor_refs = refs::accessor_refs(root);
+    let mut referenced_before = vec![false; old_accessor_count];
+    let mut referenced_after = vec![false; old_accessor_count];
+    for &(owner, _, i) in &accessor_refs {
+        if let Some(r) = referenced_before.get_mut(i) {
+            *r = true;
+        }
+        let edited =
+            matches!(owner, Owner::Primitive(m, p) if changes.primitives.contains_key(&(m, p)));
+        if !edited {
+            if let Some(r) = referenced_after.get_mut(i) {
+                *r = true;
+            }
+        }
+    }
+    let final_members = final_primitive_members(root, changes);
+    for members in final_members.values() {
+        for (_, r) in members {
+            if let Ref::Old(i) = r {
+                if let Some(a) = referenced_after.get_mut(*i) {
+                    *a = true;
+                }
+            }
+        }
+    }
+    let orphan_accessor: Vec<bool> = referenced_before
+        .iter()
+        .zip(&referenced_after)
+        .map(|(b, a)| *b && !*a)
+        .collect();
+
+    let view_refs = refs::view_refs(root);
+    let mut view_before = vec![false; old_view_count];
+    let mut view_after = vec![false; old_view_count];
+    for &(owner, _, v) in &view_refs {
+        if let Some(b) = view_before.get_mut(v) {
+            *b = true;
+        }
+        let dead = match owner {
+            Owner::Accessor(a) => orphan_accessor.get(a).copied().unwrap_or(false),
+            Owner::Primitive(m, p) => changes
+                .primitives
+                .get(&(m, p))
+                .is_some_and(|e| e.remove_draco),
+            _ => false,
+        };
+        if !dead {
+            if let Some(a) = view_after.get_mut(v) {
+                *a = true;
+            }
+        }
+    }
+    let orphan_view: Vec<bool> = view_before
+        .iter()
+        .zip(&view_after)
+        .map(|(b, a)| *b && !*a)
+        .collect();
+
+    let unknown = refs::unknown_extensions(root);
+    let meshopt = root
+        .get("extensionsUsed")
+        .and_then(Node::as_array)
+        .unwrap_or(&[])
+        .iter()
+        .any(|e| e.as_str() == Some("EXT_meshopt_compression"));
+    let orphans = orphan_accessor.iter().filter(|&&o| o).count();
+    let mut dropped = Dropped::default();
+    let dropping = orphans > 0 && unknown.is_empty() && !meshopt;
+    if orphans > 0 && !dropping {
+        dropped.kept_because = Some(if meshopt {
+            "the file uses EXT_meshopt_compression, whose compressed data tspace does not move"
+                .into()
+        } else {
+            format!(
+                "the file uses {}, which may refer to accessors or buffer views in ways tspace does not know",
+                unknown.join(", ")
+            )
+        });
+    }
+
+    // Index maps for the output.
+    let keep_accessor = |i: usize| !(dropping && orphan_accessor.get(i).copied().unwrap_or(false));
+    let keep_view = |v: usize| !(dropping && orphan_view.get(v).copied().unwrap_or(false));
+    let mut accessor_map = vec![usize::MAX; old_accessor_count];
+    let mut next = 0;
+    for (i, slot) in accessor_map.iter_mut().enumerate() {
+        if keep_accessor(i) {
+            *slot = next;
+            next += 1;
+        }
+    }
+    let kept_accessors = next;
+    let mut view_map = vec![usize::MAX; old_view_count];
+    next = 0;
+    for (v, slot) in view_map.iter_mut().enumerate() {
+        if keep_view(v) {
+            *slot = next;
+            next += 1;
+        }
+    }
+    let kept_views = next;
+    dropped.accessors = (old_accessor_count - kept_accessors) as u64;
+    dropped.buffer_views = (old_view_count - kept_views) as u64;
+    let final_accessor = |r: Ref| match r {
+        Ref::Old(i) => accessor_map.get(i).copied().unwrap_or(i),
+        Ref::New(k) => kept_accessors + k,
+    };
+
+    // Buffers: every buffer with data goes into output buffer 0; empty ones follow, in order.
+    let buffers = &loaded.buffers;
+    let buffer_list = root.get("buffers").and_then(Node::as_array).unwrap_or(&[]);
+    let has_data = |b: usize| {
+        buffers
+            .get(b)
+            .is_some_and(|b| b.source != BufferSource::Empty)
+    };
+    let mut buffer_map = vec![0usize; buffers.len()];
+    let mut empty_count = 0;
+    for (b, slot) in buffer_map.iter_mut().enumerate() {
+        if !has_data(b) {
+            empty_count += 1;
+            *slot = empty_count; // after the merged buffer
+        }
+    }
+
+    // Images to embed: a GLB must carry its images, so external ones become buffer views.
+    let mut image_views: Vec<(usize, usize, &'static str)> = Vec::new(); // (image, new view, mime)
+    let mut image_data: Vec<Vec<u8>> = Vec::new();
+    if format == OutputFormat::Glb {
+        for (i, image) in root
+            .get("images")
+            .and_then(Node::as_array)
+            .unwrap_or(&[])
+            .iter()
+            .enumerate()
+        {
+            let Some(u) = image.get("uri").and_then(Node::as_str) else {
+                continue;
+            };
+            if uri::decode_data_uri(u).is_some() {
+                continue;
+            }
+            match resources.fetch(u) {
+                Ok(bytes) => {
+                    let mime = image
+                        .get("mimeType")
+                        .and_then(Node::as_str)
+                        .and_then(|m| match m {
+                            "image/png" => Some("image/png"),
+                            "image/jpeg" => Some("image/jpeg"),
+                            "image/webp" => Some("image/webp"),
+                            "image/ktx2" => Some("image/ktx2"),
+                            _ => None,
+                        })
+                        .or_else(|| sniff_image(&bytes));
+                    match mime {
+                        Some(mime) => {
+                            image_views.push((i, image_data.len(), mime));
+                            image_data.push(bytes.into_owned());
+                        }
+                        None => warnings.push(format!(
+                            "images[{i}] ({u}) is not PNG, JPEG, WebP or KTX2 by its first bytes; it stays an external reference"
+                        )),
+                    }
+                }
+                Err(_) => warnings.push(format!(
+                    "images[{i}] refers to {u:?}, which was not supplied; the GLB keeps the reference, so that file must travel with it"
+                )),
+            }
+        }
+    }
+
+    // Lay out the output buffer: old data first, then new views, then embedded images.
+    let mut bin: Vec<u8> = Vec::new();
+    let mut view_position: Vec<Option<usize>> = vec![None; old_view_count];
+    if dropping {
+        for (v, view) in old_view_list.iter().enumerate() {
+            let b = usize_of(view.get("buffer"));
+            if !keep_view(v) || !has_data(b) {
+                continue;
+            }
+            let offset = usize_of(view.get("byteOffset"));
+            let length = usize_of(view.get("byteLength"));
+            let Some(bytes) = buffers
+                .get(b)
+                .and_then(|b| b.bytes.get(offset..offset.saturating_add(length)))
+            else {
+                return Err(SceneError::malformed(
+                    "invalid-buffer-view",
+                    format!("bufferViews[{v}] lies outside buffers[{b}]"),
+                ));
+            };
+            // Keeping the offset modulo 16 keeps every alignment the input had.
+            let at = align(bin.len(), 16) + offset % 16;
+            bin.resize(at, 0);
+            bin.extend_from_slice(bytes);
+            view_position[v] = Some(at);
+        }
+    } else {
+        let mut base = vec![0usize; buffers.len()];
+        for (b, buffer) in buffers.iter().enumerate() {
+            if has_data(b) {
+                let at = align(bin.len(), 16);
+                bin.resize(at, 0);
+                base[b] = at;
+                bin.extend_from_slice(&buffer.bytes);
+            }
+        }
+        for (v, view) in old_view_list.iter().enumerate() {
+            let b = usize_of(view.get("buffer"));
+            if has_data(b) {
+                view_position[v] =
+                    Some(base.get(b).copied().unwrap_or(0) + usize_of(view.get("byteOffset")));
+            }
+        }
+    }
+    let mut new_view_offsets = Vec::with_capacity(changes.views.len() + image_data.len());
+    for data in changes
+        .views
+        .iter()
+        .map(|v| &v.data)
+        .chain(image_data.iter())
+    {
+        let at = align(bin.len(), 4);
+        bin.resize(at, 0);
+        new_view_offsets.push(at);
+        bin.extend_from_slice(data);
+    }
+    let bin_needed =
+        buffers.iter().enumerate().any(|(b, _)| has_data(b)) || !new_view_offsets.is_empty();
+
+    let mut editor = Editor::new(&loaded.doc);
+
+    // Accessors: drop, renumber views, append.
+    if let Some(list) = root.get("accessors") {
+        for a in (0..old_accessor_count).filter(|&a| !keep_accessor(a)) {
+            editor.remove_element(list, a).map_err(edit_error)?;
+        }
+    }
+    for &(owner, node, v) in &view_refs {
+        let alive = match owner {
+            Owner::Accessor(a) => keep_accessor(a),
+            Owner::Primitive(m, p) => !changes
+                .primitives
+                .get(&(m, p))
+                .is_some_and(|e| e.remove_draco),
+            _ => true,
+        };
+        let target = view_map.get(v).copied().unwrap_or(v);
+        if alive && target != v {
+            editor
+                .replace(node, target.to_string())
+                .map_err(edit_error)?;
+        }
+    }
+    for accessor in &changes.accessors {
+        let mut text = format!(
+            "{{\"bufferView\":{},\"componentType\":{},",
+            kept_views + accessor.view,
+            accessor.component_type.code()
+        );
+        if accessor.normalized {
+            text.push_str("\"normalized\":true,");
+        }
+        text.push_str(&format!(
+            "\"count\":{},\"type\":\"{}\"",
+            accessor.count,
+            accessor.element_type.name()
+        ));
+        if let Some((min, max)) = &accessor.min_max {
+            text.push_str(&format!(",\"min\":{min},\"max\":{max}"));
+        }
+        text.push('}');
+        editor
+            .push_to_array_member(root, "accessors", text)
+            .map_err(edit_error)?;
+    }
+
+    // Buffer views: drop, re-point at the output buffer, append.
+    if let Some(list) = root.get("bufferViews") {
+        for (v, view) in old_view_list.iter().enumerate() {
+            if !keep_view(v) {
+                editor.remove_element(list, v).map_err(edit_error)?;
+                continue;
+            }
+            let b = usize_of(view.get("buffer"));
+            let new_buffer = buffer_map.get(b).copied().unwrap_or(0);
+            if new_buffer != b {
+                if let Some(node) = view.get("buffer") {
+                    editor
+                        .replace(node, new_buffer.to_string())
+                        .map_err(edit_error)?;
+                }
+            }
+            if let Some(at) = view_position[v] {
+                if at != usize_of(view.get("byteOffset")) {
+                    editor
+                        .set_member(view, "byteOffset", at.to_string())
+                        .map_err(edit_error)?;
+                }
+            }
+            // The meshopt extension names a buffer too.
+            if let Some(node) = view
+                .get("extensions")
+                .and_then(|e| e.get("EXT_meshopt_compression"))
+                .and_then(|e| e.get("buffer"))
+            {
+                let b = usize_of(Some(node));
+                let new_buffer = buffer_map.get(b).copied().unwrap_or(0);
+                if new_buffer != b {
+                    editor
+                        .replace(node, new_buffer.to_string())
+                        .map_err(edit_error)?;
+                }
+            }
+        }
+    }
+    let new_view_texts = changes
+        .views
+        .iter()
+        .map(|v| (v.data.len(), v.target, v.byte_stride))
+        .chain(image_data.iter().map(|d| (d.len(), None, None)));
+    for ((length, target, stride), offset) in new_view_texts.zip(&new_view_offsets) {
+        let mut text = format!("{{\"buffer\":0,\"byteOffset\":{offset},\"byteLength\":{length}");
+        if let Some(stride) = stride {
+            text.push_str(&format!(",\"byteStride\":{stride}"));
+        }
+        if let Some(target) = target {
+            text.push_str(&format!(",\"target\":{target}"));
+        }
+        text.push('}');
+        editor
+            .push_to_array_member(root, "bufferViews", text)
+            .map_err(edit_error)?;
+    }
+
+    // Accessor references outside the edited primitives.
+    if dropping {
+        for &(owner, node, i) in &accessor_refs {
+            if matches!(owner, Owner::Primitive(m, p) if changes.primitives.contains_key(&(m, p))) {
+                continue;
+            }
+            let target = accessor_map.get(i).copied().unwrap_or(i);
+            if target != i {
+                editor
+                    .replace(node, target.to_string())
+                    .map_err(edit_error)?;
+            }
+        }
+    }
+
+    // The edited primitives.
+    let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
+    let mut draco_left = false;
+    for (m, mesh) in meshes.iter().enumerate() {
+        for (p, primitive) in mesh
+            .get("primitives")
+            .and_then(Node::as_array)
+            .unwrap_or(&[])
+            .iter()
+            .enumerate()
+        {
+            let has_draco = primitive
+                .get("extensions")
+                .and_then(|e| e.get("KHR_draco_mesh_compression"))
+                .is_some();
+            let Some(edit) = changes.primitives.get(&(m, p)) else {
+                draco_left |= has_draco;
+                continue;
+            };
+            apply_primitive_edit(&mut editor, primitive, edit, dropping, &final_accessor)?;
+            draco_left |= has_draco && !edit.remove_draco;
+        }
+    }
+    if !draco_left {
+        if let Some(used) = root.get("extensionsUsed") {
+            for (i, name) in used.as_array().unwrap_or(&[]).iter().enumerate() {
+                if name.as_str() == Some("KHR_draco_mesh_compression") {
+                    editor.remove_element(used, i).map_err(edit_error)?;
+                    warnings.push(
+                        "KHR_draco_mesh_compression was removed: the primitives that had it now carry tangents and use their uncompressed data".into(),
+                    );
+                }
+            }
+        }
+    }
+
+    // Embedded images.
+    let images = root.get("images").and_then(Node::as_array).unwrap_or(&[]);
+    for &(i, data_index, mime) in &image_views {
+        let Some(image) = images.get(i) else { continue };
+        editor.remove_member(image, "uri").map_err(edit_error)?;
+        let view = kept_views + changes.views.len() + data_index;
+        editor
+            .set_member(image, "bufferView", view.to_string())
+            .map_err(edit_error)?;
+        if image.get("mimeType").is_none() {
+            editor
+                .set_member(image, "mimeType", json::escape_str(mime))
+                .map_err(edit_error)?;
+        }
+    }
+
+    // The buffers array: the merged buffer first, then the empty ones.
+    let bin_text = match format {
+        OutputFormat::Glb => None,
+        OutputFormat::GltfEmbedded => Some(format!(
+            "data:application/octet-stream;base64,{}",
+            base64(&bin)
+        )),
+    };
+    let mut entries: Vec<String> = Vec::new();
+    if bin_needed {
+        let first_data = (0..buffers.len()).find(|&b| has_data(b));
+        let merged = match first_data.and_then(|b| buffer_list.get(b)) {
+            Some(original) => {
+                let text = loaded.doc.text(original);
+                let sub = Document::parse(text.as_bytes()).map_err(|e| {
+                    SceneError::malformed("malformed-json", format!("buffers: {e}"))
+                })?;
+                let mut sub_editor = Editor::new(&sub);
+                sub_editor
+                    .set_member(sub.root(), "byteLength", bin.len().max(1).to_string())
+                    .map_err(edit_error)?;
+                match &bin_text {
+                    None => {
+                        sub_editor
+                            .remove_member(sub.root(), "uri")
+                            .map_err(edit_error)?;
+                    }
+                    Some(uri) => sub_editor
+                        .set_member(sub.root(), "uri", json::escape_str(uri))
+                        .map_err(edit_error)?,
+                }
+                sub_editor.render().map_err(edit_error)?
+            }
+            None => match &bin_text {
+                None => format!("{{\"byteLength\":{}}}", bin.len().max(1)),
+                Some(uri) => format!(
+                    "{{\"byteLength\":{},\"uri\":{}}}",
+                    bin.len().max(1),
+                    json::escape_str(uri)
+                ),
+            },
+        };
+        entries.push(merged);
+        let merged_count = (0..buffers.len()).filter(|&b| has_data(b)).count();
+        if merged_count > 1 {
+            warnings.push(format!(
+                "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
+            ));
+        }
+    }
+    for (b, original) in buffer_list.iter().enumerate() {
+        if !has_data(b) {
+            entries.push(loaded.doc.text(original).to_owned());
+        }
+    }
+    let buffers_text = format!("[{}]", entries.join(","));
+    let single = buffers.len() == 1 && has_data(0) && bin_needed;
+    match root.get("buffers") {
+        // The usual file, one buffer with data: edit it in place, keeping its layout.
+        Some(node) if single => {
+            if let Some(buffer) = node.index(0) {
+                editor
+                    .set_member(buffer, "byteLength", bin.len().max(1).to_string())
+                    .map_err(edit_error)?;
+                match &bin_text {
+                    None => {
+                        editor.remove_member(buffer, "uri").map_err(edit_error)?;
+                    }
+                    Some(uri) => editor
+                        .set_member(buffer, "uri", json::escape_str(uri))
+                        .map_err(edit_error)?,
+                }
+            }
+        }
+        Some(node) => editor.replace(node, buffers_text).map_err(edit_error)?,
+        None if !entries.is_empty() => editor
+            .set_member(root, "buffers", buffers_text)
+            .map_err(edit_error)?,
+        None => {}
+    }
+
+    let json_text = editor.render().map_err(edit_error)?;
+    let bytes = match format {
+        OutputFormat::Glb => glb::write(
+            json_text.as_bytes(),
+            bin_needed.then_some(bin.as_slice()),
+            if loaded.container == Container::Glb {
+                &loaded.other_chunks
+            } else {
+                &[]
+            },
+        )
+        .map_err(|e| SceneError::too_large("output-too-large", format!("the output {e}")))?,
+        OutputFormat::GltfEmbedded => json_text.into_bytes(),
+    };
+    Ok(Written {
+        bytes,
+        dropped,
+        warnings,
+    })
+}
+
+/// Each edited primitive's accessor references after the edit, `(member path, accessor)`.
+fn final_primitive_members(
+    root: &Node,
+    changes: &Changes,
+) -> HashMap<(usize, usize), Vec<(String, Ref)>> {
+    let mut out = HashMap::new();
+    let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
+    for (&(m, p), edit) in &changes.primitives {
+        let Some(primitive) = meshes
+            .get(m)
+            .and_then(|mesh| mesh.get("primitives"))
+            .and_then(|ps| ps.index(p))
+        else {
+            continue;
+        };
+        let mut members = Vec::new();
+        let merged = |original: Option<&Node>,
+                      set: &[(String, Ref)],
+                      prefix: &str,
+                      members: &mut Vec<(String, Ref)>| {
+            for member in original.and_then(Node::as_object).unwrap_or(&[]) {
+                if set.iter().any(|(k, _)| *k == member.key) {
+                    continue;
+                }
+                if let Some(i) = member.value.as_u64().and_then(|i| usize::try_from(i).ok()) {
+                    members.push((format!("{prefix}{}", member.key), Ref::Old(i)));
+                }
+            }
+            for (k, r) in set {
+                members.push((format!("{prefix}{k}"), *r));
+            }
+        };
+        merged(
+            primitive.get("attributes"),
+            &edit.attributes,
+            "attributes.",
+            &mut members,
+        );
+        match (
+            edit.indices,
+            primitive.get("indices").and_then(Node::as_u64),
+        ) {
+            (Some(r), _) => members.push(("indices".into(), r)),
+            (None, Some(i)) => members.push(("indices".into(), Ref::Old(i as usize))),
+            _ => {}
+        }
+        let targets = primitive
+            .get("targets")
+            .and_then(Node::as_array)
+            .unwrap_or(&[]);
+        for (t, target) in targets.iter().enumerate() {
+            let set = edit.targets.get(t).map_or(&[][..], Vec::as_slice);
+            merged(Some(target), set, &format!("targets[{t}]."), &mut members);
+        }
+        out.insert((m, p), members);
+    }
+    out
+}
+
+fn apply_primitive_edit(
+    editor: &mut Editor<'_, '_>,
+    primitive: &Node,
+    edit: &PrimitiveEdit,
+    dropping: bool,
+    final_accessor: &dyn Fn(Ref) -> usize,
+) -> Result<(), SceneError> {
+    let set_all = |editor: &mut Editor<'_, '_>,
+                   object: &Node,
+                   set: &[(String, Ref)]|
+     -> Result<(), SceneError> {
+        for (key, r) in set {
+            editor
+                .set_member(object, key, final_accessor(*r).to_string())
+                .map_err(edit_error)?;
+        }
+        // Members left alone still need renumbering when accessors were dropped.
+        if dropping {
+            for member in object.as_object().unwrap_or(&[]) {
+                if set.iter().any(|(k, _)| *k == member.key) {
+                    continue;
+                }
+                if let Some(i) = member.value.as_u64().and_then(|i| usize::try_from(i).ok()) {
+                    let target = final_accessor(Ref::Old(i));
+                    if target != i {
+                        editor
+                            .replace(&member.value, target.to_string())
+                            .map_err(edit_error)?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    };
+    if let Some(attributes) = primitive.get("attributes") {
+        set_all(editor, attributes, &edit.attributes)?;
+    }
+    match (edit.indices, primitive.get("indices")) {
+        (Some(r), _) => editor
+            .set_member(primitive, "indices", final_accessor(r).to_string())
+            .map_err(edit_error)?,
+        (None, Some(node)) if dropping => {
+            if let Some(i) = node.as_u64().and_then(|i| usize::try_from(i).ok()) {
+                let target = final_accessor(Ref::Old(i));
+                if target != i {
+                    editor
+                        .replace(node, target.to_string())
+                        .map_err(edit_error)?;
+                }
+            }
+        }
+        _ => {}
+    }
+    if edit.to_triangle_list {
+        editor
+            .set_member(primitive, "mode", "4")
+            .map_err(edit_error)?;
+    }
+    let targets = primitive
+        .get("targets")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    for (t, target) in targets.iter().enumerate() {
+        let set = edit.targets.get(t).map_or(&[][..], Vec::as_slice);
+        set_all(editor, target, set)?;
+    }
+    if edit.remove_draco {
+        if let Some(extensions) = primitive.get("extensions") {
+            let only = extensions.as_object().is_some_and(|m| m.len() == 1);
+            if only {
+                editor
+                    .remove_member(primitive, "extensions")
+                    .map_err(edit_error)?;
+            } else {
+                editor
+                    .remove_member(extensions, "KHR_draco_mesh_compression")
+                    .map_err(edit_error)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Standard base64 with padding, for the embedded buffer's `data:` URI.
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        let symbols = [(n >> 18) & 63, (n >> 12) & 63, (n >> 6) & 63, n & 63];
+        for (i, s) in symbols.iter().enumerate() {
+            if i <= chunk.len() {
+                out.push(char::from(ALPHABET[*s as usize]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_the_decoder() {
+        for len in 0..40 {
+            let bytes: Vec<u8> = (0..len).map(|i| (i * 37 + 11) as u8).collect();
+            let text = base64(&bytes);
+            assert_eq!(uri::decode_base64(text.as_bytes()).unwrap(), bytes);
+        }
+    }
+
+    #[test]
+    fn min_max_in_component_values() {
+        let data: Vec<u8> = [[1i16, -5, 3], [7, 2, -9]]
+            .iter()
+            .flat_map(|e| e.iter().flat_map(|c| c.to_le_bytes()).chain([0, 0]))
+            .collect();
+        let (min, max) = min_max_of(&data, 8, ComponentType::I16, ElementType::Vec3).unwrap();
+        assert_eq!((min.as_str(), max.as_str()), ("[1,-5,-9]", "[7,2,3]"));
+    }
+
+    #[test]
+    fn images_are_sniffed_not_decoded() {
+        assert_eq!(sniff_image(b"\x89PNG\r\n\x1a\nrest"), Some("image/png"));
+        assert_eq!(sniff_image(&[0xFF, 0xD8, 0xFF, 0xE0]), Some("image/jpeg"));
+        assert_eq!(sniff_image(b"GIF89a"), None);
+    }
+}
