@@ -363,3 +363,402 @@ fn quantized_and_sparse_primitives_get_tangents_with_the_axis_method() {
     let json = glb_json(&bytes);
     assert!(json["meshes"][0]["primitives"][0]["attributes"]["NORMAL"].is_number());
 }
+
+// ---- Synthetic scenes: one property each ----
+
+use common::scene::{Builder, normal_mapped, texture_stub};
+use serde_json::json;
+
+/// A unit quad in the z = 0 plane, two triangles sharing the 0–2 diagonal.
+const QUAD_POSITIONS: [f32; 12] = [0., 0., 0., 1., 0., 0., 1., 1., 0., 0., 1., 0.];
+const QUAD_NORMALS: [f32; 12] = [0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.];
+/// Texture coordinates that mirror the second triangle, so vertices 0 and 2 must split.
+const MIRRORED_UVS: [f32; 8] = [0., 0., 1., 0., 1., 1., 2., 0.];
+
+fn process_glb(bytes: &[u8], options: SceneOptions) -> Processed {
+    process(bytes, &NoResources, &options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The values of accessor `index` of a GLB, read by the `gltf` crate.
+fn read_accessor_f32(bytes: &[u8], index: usize) -> Vec<f32> {
+    let gltf = gltf::Gltf::from_slice(bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let accessor = gltf.accessors().nth(index).unwrap();
+    let iter = gltf::accessor::Iter::<f32>::new(accessor.clone(), |_| Some(&blob[..]));
+    match accessor.dimensions() {
+        gltf::accessor::Dimensions::Scalar => iter.unwrap().collect(),
+        gltf::accessor::Dimensions::Vec3 => {
+            gltf::accessor::Iter::<[f32; 3]>::new(accessor, |_| Some(&blob[..]))
+                .unwrap()
+                .flatten()
+                .collect()
+        }
+        gltf::accessor::Dimensions::Mat4 => {
+            gltf::accessor::Iter::<[[f32; 4]; 4]>::new(accessor, |_| Some(&blob[..]))
+                .unwrap()
+                .flat_map(|m| m.into_iter().flatten())
+                .collect()
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn a_split_remaps_every_attribute_and_renumbers_every_reference() {
+    let mut b = Builder::default();
+    let position = b.floats(&QUAD_POSITIONS, "VEC3", true);
+    let normal = b.floats(&QUAD_NORMALS, "VEC3", false);
+    let uv = b.floats(&MIRRORED_UVS, "VEC2", false);
+    let colors = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [9, 99, 199]];
+    let color = b.colors_u8(&colors);
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    // Accessors after the mesh's, so dropping the mesh's old ones renumbers these.
+    let times = b.floats(&[0.0, 1.0], "SCALAR", true);
+    let moves = b.floats(&[0., 0., 0., 1., 2., 3.], "VEC3", false);
+    let identity: Vec<f32> = (0..16)
+        .map(|i| if i % 5 == 0 { 1.0 } else { 0.0 })
+        .collect();
+    let bind = b.floats(&identity, "MAT4", false);
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"name": "joint"}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv, "COLOR_0": color}, "indices": indices, "material": 0}]}],
+        "materials": normal_mapped(0),
+        "skins": [{"inverseBindMatrices": bind, "joints": [1]}],
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}],
+            "samplers": [{"input": times, "output": moves}]}],
+        "extras": {"kept": [1.50, 2e3]}
+    });
+    texture_stub(&mut doc);
+    let input = b.glb(doc);
+    let done = process_glb(&input, SceneOptions::default());
+    let report = &done.report;
+    assert_eq!(
+        report.summary.vertices_added, 2,
+        "{:?}",
+        report.primitives[0].diagnostics
+    );
+    assert_eq!(report.dropped.accessors, 5, "{:?}", report.dropped);
+    let bytes = done.bytes.unwrap();
+    assert_valid("split.glb", &bytes);
+
+    let json = glb_json(&bytes);
+    // The skin and the animation still find their data, under new numbers.
+    let sampler = &json["animations"][0]["samplers"][0];
+    assert_eq!(
+        read_accessor_f32(&bytes, sampler["input"].as_u64().unwrap() as usize),
+        vec![0.0, 1.0]
+    );
+    assert_eq!(
+        read_accessor_f32(&bytes, sampler["output"].as_u64().unwrap() as usize),
+        vec![0., 0., 0., 1., 2., 3.]
+    );
+    let bind_index = json["skins"][0]["inverseBindMatrices"].as_u64().unwrap() as usize;
+    assert_eq!(read_accessor_f32(&bytes, bind_index), identity);
+    // Number spelling in untouched members survives.
+    let text =
+        String::from_utf8_lossy(tspace::scene::gltf::glb::parse(&bytes).unwrap().json).into_owned();
+    assert!(
+        text.contains("[1.5,2000.0]") || text.contains("[1.50,2e3]"),
+        "{text}"
+    );
+
+    // Every corner keeps its colour and position; the tangents are per corner what the core gives.
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = primitive.reader(|_| Some(&blob[..]));
+    let out_colors: Vec<[u8; 3]> = reader.read_colors(0).unwrap().into_rgb_u8().collect();
+    let out_positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    let out_indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+    assert_eq!(out_positions.len(), 6);
+    for (corner, &v) in [0u32, 1, 2, 0, 2, 3].iter().zip(&out_indices) {
+        assert_eq!(out_colors[v as usize], colors[*corner as usize]);
+        let p = &QUAD_POSITIONS[*corner as usize * 3..][..3];
+        assert_eq!(out_positions[v as usize], [p[0], p[1], p[2]]);
+    }
+    let tangents: Vec<[f32; 4]> = reader.read_tangents().unwrap().collect();
+    let w: Vec<f32> = out_indices
+        .iter()
+        .map(|&v| tangents[v as usize][3])
+        .collect();
+    assert_eq!(&w[..3], &[w[0]; 3]);
+    assert_eq!(&w[3..], &[-w[0]; 3]);
+}
+
+#[test]
+fn primitives_sharing_accessors_are_computed_once() {
+    let mut b = Builder::default();
+    let position = b.floats(&QUAD_POSITIONS, "VEC3", true);
+    let normal = b.floats(&QUAD_NORMALS, "VEC3", false);
+    let uv = b.floats(&[0., 0., 1., 0., 1., 1., 0., 1.], "VEC2", false);
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let primitive = json!({"attributes": {"POSITION": position, "NORMAL": normal, "TEXCOORD_0": uv},
+        "indices": indices, "material": 0});
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0, 1]}], "nodes": [{"mesh": 0}, {"mesh": 1}],
+        "meshes": [{"primitives": [primitive.clone()]}, {"primitives": [primitive]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    let done = process_glb(&b.glb(doc), SceneOptions::default());
+    assert_eq!(done.report.summary.computations, 1);
+    assert_eq!(done.report.summary.generated, 2);
+    assert_eq!(done.report.primitives[1].shared_with, Some([0, 0]));
+    let bytes = done.bytes.unwrap();
+    assert_valid("shared.glb", &bytes);
+    let json = glb_json(&bytes);
+    let tangent = |m: usize| json["meshes"][m]["primitives"][0]["attributes"]["TANGENT"].clone();
+    assert_eq!(tangent(0), tangent(1));
+    assert_eq!(json["accessors"].as_array().unwrap().len(), 5);
+}
+
+#[test]
+fn strips_and_fans_match_the_same_triangles_as_a_list() {
+    let run = |mode: u64, indices: &[u16]| -> Vec<[f32; 4]> {
+        let mut b = Builder::default();
+        let position = b.floats(&QUAD_POSITIONS, "VEC3", true);
+        let normal = b.floats(&QUAD_NORMALS, "VEC3", false);
+        let uv = b.floats(&[0., 0., 1., 0., 1., 1., 0., 1.], "VEC2", false);
+        let indices = b.indices(indices);
+        let mut doc = json!({
+            "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+                "TEXCOORD_0": uv}, "indices": indices, "material": 0, "mode": mode}]}],
+            "materials": normal_mapped(0),
+        });
+        texture_stub(&mut doc);
+        let done = process_glb(&b.glb(doc), SceneOptions::default());
+        let bytes = done.bytes.unwrap();
+        assert_valid("strip.glb", &bytes);
+        assert_eq!(
+            glb_json(&bytes)["meshes"][0]["primitives"][0]["mode"],
+            json!(4)
+        );
+        corner_tangents(&bytes).remove(0)
+    };
+    let list = run(4, &[0, 1, 3, 1, 2, 3]);
+    assert_eq!(run(5, &[0, 1, 3, 2]), list);
+    let fan_list = run(4, &[1, 2, 0, 2, 3, 0]);
+    assert_eq!(run(6, &[0, 1, 2, 3]), fan_list);
+}
+
+#[test]
+fn the_normal_maps_uv_set_decides_the_tangent() {
+    let mut b = Builder::default();
+    let position = b.floats(&QUAD_POSITIONS, "VEC3", true);
+    let normal = b.floats(&QUAD_NORMALS, "VEC3", false);
+    let uv0 = b.floats(&[0., 0., 1., 0., 1., 1., 0., 1.], "VEC2", false);
+    // Set 1 is set 0 turned a quarter: u runs along +y.
+    let uv1 = b.floats(&[0., 0., 0., -1., 1., -1., 1., 0.], "VEC2", false);
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv0, "TEXCOORD_1": uv1}, "indices": indices, "material": 0}]}],
+        "materials": normal_mapped(1),
+    });
+    texture_stub(&mut doc);
+    let done = process_glb(&b.glb(doc), SceneOptions::default());
+    assert_eq!(done.report.primitives[0].texcoord, 1);
+    let bytes = done.bytes.unwrap();
+    assert_valid("uv1.glb", &bytes);
+    for t in &corner_tangents(&bytes)[0] {
+        assert!((t[1] - 1.0).abs() < 1e-6 && t[0].abs() < 1e-6, "{t:?}");
+    }
+}
+
+#[test]
+fn morph_targets_get_tangent_deltas_from_the_morphed_mesh() {
+    // A 4x4 grid that the target bends upwards.
+    let n = 4;
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut uvs = Vec::new();
+    let mut deltas = Vec::new();
+    let mut normal_deltas = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let (x, y) = (i as f32 / 3.0, j as f32 / 3.0);
+            positions.extend([x, y, 0.0]);
+            normals.extend([0.0, 0.0, 1.0]);
+            uvs.extend([x, y]);
+            deltas.extend([0.0, 0.0, 0.5 * x * x]);
+            // The bent surface's normal, as a delta from +z.
+            let length = (x * x + 1.0f32).sqrt();
+            normal_deltas.extend([-x / length, 0.0, 1.0 / length - 1.0]);
+        }
+    }
+    let mut indices = Vec::new();
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let v = (j * n + i) as u16;
+            let n = n as u16;
+            indices.extend([v, v + 1, v + n + 1, v, v + n + 1, v + n]);
+        }
+    }
+    let mut b = Builder::default();
+    let position = b.floats(&positions, "VEC3", true);
+    let normal = b.floats(&normals, "VEC3", false);
+    let uv = b.floats(&uvs, "VEC2", false);
+    let delta = b.floats(&deltas, "VEC3", true);
+    let normal_delta = b.floats(&normal_deltas, "VEC3", false);
+    let index = b.indices(&indices);
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv}, "indices": index, "material": 0,
+            "targets": [{"POSITION": delta, "NORMAL": normal_delta}]}], "weights": [0.0]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    let done = process_glb(&b.glb(doc), SceneOptions::default());
+    let morph = done.report.primitives[0].morph_targets.clone().unwrap();
+    assert_eq!((morph.targets, morph.with_tangent_deltas), (1, 1));
+    let bytes = done.bytes.unwrap();
+    assert_valid("morph.glb", &bytes);
+    let json = glb_json(&bytes);
+    let primitive = &json["meshes"][0]["primitives"][0];
+    let base_index = primitive["attributes"]["TANGENT"].as_u64().unwrap() as usize;
+    let delta_index = primitive["targets"][0]["TANGENT"].as_u64().unwrap() as usize;
+
+    // Base plus delta is MikkTSpace on the morphed mesh.
+    let morphed: Vec<[f32; 3]> = positions
+        .chunks(3)
+        .zip(deltas.chunks(3))
+        .map(|(p, d)| [p[0] + d[0], p[1] + d[1], p[2] + d[2]])
+        .collect();
+    let normals3: Vec<[f32; 3]> = normals
+        .chunks(3)
+        .zip(normal_deltas.chunks(3))
+        .map(|(n, d)| {
+            let m = [n[0] + d[0], n[1] + d[1], n[2] + d[2]];
+            let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+            [m[0] / l, m[1] / l, m[2] / l]
+        })
+        .collect();
+    let uvs2: Vec<[f32; 2]> = uvs.chunks(2).map(|c| [c[0], c[1]]).collect();
+    let indices32: Vec<u32> = indices.iter().map(|&i| u32::from(i)).collect();
+    let expected = tspace::tangent::generate(
+        &tspace::tangent::MeshInput {
+            positions: &morphed,
+            normals: Some(&normals3),
+            uvs: Some(&uvs2),
+            indices: Some(&indices32),
+        },
+        &tspace::tangent::Options::default(),
+    )
+    .unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let base: Vec<[f32; 4]> =
+        gltf::accessor::Iter::new(gltf.accessors().nth(base_index).unwrap(), |_| {
+            Some(&blob[..])
+        })
+        .unwrap()
+        .collect();
+    let delta_out: Vec<[f32; 3]> =
+        gltf::accessor::Iter::new(gltf.accessors().nth(delta_index).unwrap(), |_| {
+            Some(&blob[..])
+        })
+        .unwrap()
+        .collect();
+    let out_indices: Vec<u32> = gltf
+        .meshes()
+        .next()
+        .unwrap()
+        .primitives()
+        .next()
+        .unwrap()
+        .reader(|_| Some(&blob[..]))
+        .read_indices()
+        .unwrap()
+        .into_u32()
+        .collect();
+    let mut max_error = 0.0f32;
+    for (corner, &v) in out_indices.iter().enumerate() {
+        let t = expected.corner_tangent(corner);
+        let (b, d) = (base[v as usize], delta_out[v as usize]);
+        for k in 0..3 {
+            max_error = max_error.max((b[k] + d[k] - t[k]).abs());
+        }
+    }
+    assert!(
+        max_error < 1e-5,
+        "base + delta is {max_error} away from the morphed tangents"
+    );
+    assert!(
+        delta_out.iter().any(|d| d[2].abs() > 0.05),
+        "the bend must tilt the tangents"
+    );
+}
+
+#[test]
+fn external_buffers_merge_into_one_and_a_draco_fallback_replaces_the_extension() {
+    // Positions in one file, everything else in another; a Draco extension with a fallback.
+    let mut b = Builder::default();
+    let position = b.floats(&QUAD_POSITIONS, "VEC3", true);
+    let normal = b.floats(&QUAD_NORMALS, "VEC3", false);
+    let uv = b.floats(&[0., 0., 1., 0., 1., 1., 0., 1.], "VEC2", false);
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let first_len = 48;
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "extensionsUsed": ["KHR_draco_mesh_compression"],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv}, "indices": indices, "material": 0,
+            "extensions": {"KHR_draco_mesh_compression": {"bufferView": 4,
+                "attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}}}}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    let mut doc = b.document(doc);
+    let rest = b.bin[first_len..].to_vec();
+    let mut rest_padded = rest.clone();
+    rest_padded.extend_from_slice(b"fake draco bytes");
+    doc["buffers"] = json!([
+        {"byteLength": first_len, "uri": "positions.bin"},
+        {"byteLength": rest_padded.len(), "uri": "rest%20of%20it.bin", "name": "rest"}
+    ]);
+    let views = doc["bufferViews"].as_array_mut().unwrap();
+    for view in views.iter_mut().skip(1) {
+        view["buffer"] = json!(1);
+        view["byteOffset"] = json!(view["byteOffset"].as_u64().unwrap() - first_len as u64);
+    }
+    views.push(json!({"buffer": 1, "byteOffset": rest.len(), "byteLength": 16}));
+    let text = serde_json::to_vec(&doc).unwrap();
+    let first = b.bin[..first_len].to_vec();
+    let mut parts = PartSet::new();
+    parts.insert("positions.bin", &first).unwrap();
+    parts.insert("rest of it.bin", &rest_padded).unwrap();
+    let done = process(&text, &parts, &SceneOptions::default()).unwrap();
+    assert!(
+        done.report.warnings.iter().any(|w| w.contains("merged")),
+        "{:?}",
+        done.report.warnings
+    );
+    assert!(
+        done.report
+            .warnings
+            .iter()
+            .any(|w| w.contains("KHR_draco_mesh_compression"))
+    );
+    let bytes = done.bytes.unwrap();
+    assert_valid("merged.glb", &bytes);
+    let json = glb_json(&bytes);
+    assert_eq!(json["buffers"].as_array().unwrap().len(), 1);
+    assert!(
+        json["meshes"][0]["primitives"][0]
+            .get("extensions")
+            .is_none()
+    );
+    assert!(
+        json.get("extensionsUsed")
+            .is_none_or(|u| u.as_array().unwrap().is_empty())
+    );
+    assert_eq!(
+        done.report.dropped.buffer_views, 1,
+        "the Draco data is gone"
+    );
+}

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod meshes;
+pub mod scene;
 #[path = "../../benches/shapes.rs"]
 pub mod shapes;
 pub mod validator;

@@ -430,7 +430,11 @@ pub fn write(
         .unwrap_or(&[])
         .iter()
         .any(|e| e.as_str() == Some("EXT_meshopt_compression"));
-    let orphans = orphan_accessor.iter().filter(|&&o| o).count();
+    let orphans = orphan_accessor
+        .iter()
+        .chain(&orphan_view)
+        .filter(|&&o| o)
+        .count();
     let mut dropped = Dropped::default();
     let dropping = orphans > 0 && unknown.is_empty() && !meshopt;
     if orphans > 0 && !dropping {
@@ -504,10 +508,13 @@ pub fn write(
             let Some(u) = image.get("uri").and_then(Node::as_str) else {
                 continue;
             };
-            if uri::decode_data_uri(u).is_some() {
-                continue;
-            }
-            match resources.fetch(u) {
+            // A data: URI in a GLB draws a validator warning; its bytes belong in the BIN chunk.
+            let fetched = match uri::decode_data_uri(u) {
+                Some(Ok(data)) => Ok(std::borrow::Cow::Owned(data.bytes)),
+                Some(Err(_)) => continue,
+                None => resources.fetch(u),
+            };
+            match fetched {
                 Ok(bytes) => {
                     let mime = image
                         .get("mimeType")
@@ -741,9 +748,17 @@ pub fn write(
     }
     if !draco_left {
         if let Some(used) = root.get("extensionsUsed") {
-            for (i, name) in used.as_array().unwrap_or(&[]).iter().enumerate() {
+            let names = used.as_array().unwrap_or(&[]);
+            for (i, name) in names.iter().enumerate() {
                 if name.as_str() == Some("KHR_draco_mesh_compression") {
-                    editor.remove_element(used, i).map_err(edit_error)?;
+                    // An empty extensionsUsed is invalid: drop the member with its last name.
+                    if names.len() == 1 {
+                        editor
+                            .remove_member(root, "extensionsUsed")
+                            .map_err(edit_error)?;
+                    } else {
+                        editor.remove_element(used, i).map_err(edit_error)?;
+                    }
                     warnings.push(
                         "KHR_draco_mesh_compression was removed: the primitives that had it now carry tangents and use their uncompressed data".into(),
                     );
