@@ -11,6 +11,8 @@ pub struct Report {
     pub tspace_version: &'static str,
     /// `glb`, `gltf` or `obj`.
     pub input_format: &'static str,
+    /// The input's size: the file, plus the external buffers it referenced and the external
+    /// images the output now embeds.
     pub input_bytes: u64,
     /// `glb` or `gltf`; absent when no scene was written (analysis only).
     #[serde(skip_serializing_if = "Option::is_none")]

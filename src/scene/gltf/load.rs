@@ -101,7 +101,8 @@ pub fn load<'a>(
     let doc = Document::parse(json)
         .map_err(|e| SceneError::malformed("malformed-json", format!("the glTF JSON is {e}")))?;
     check_asset(doc.root())?;
-    let buffers = load_buffers(doc.root(), container, bin, resources, limits)?;
+    let mut buffers = load_buffers(doc.root(), container, bin, resources, limits)?;
+    decode_meshopt(doc.root(), &mut buffers, limits)?;
     Ok(Loaded {
         container,
         doc,
@@ -225,6 +226,124 @@ fn load_buffers<'a>(
         buffers.push(Buffer { bytes, source });
     }
     Ok(buffers)
+}
+
+fn usize_member(node: &Node, key: &str, path: &str) -> Result<Option<usize>, SceneError> {
+    match node.get(key) {
+        None => Ok(None),
+        Some(value) => value
+            .as_u64()
+            .and_then(|n| usize::try_from(n).ok())
+            .map(Some)
+            .ok_or_else(|| {
+                SceneError::malformed(
+                    "malformed-gltf",
+                    format!("{path}.{key} must be a non-negative integer"),
+                )
+            }),
+    }
+}
+
+/// Decodes every `EXT_meshopt_compression` buffer view whose own buffer holds no data (the
+/// fallback buffer of a file that requires the extension) into that buffer, so that accessors
+/// read it like any other. Views whose fallback has real data are read as they are.
+///
+/// A fallback buffer is allocated only as far as its decoded views reach, and at most
+/// `max_buffer_bytes`; each view's decoded size is bounded by the decoder against its
+/// compressed size, so the allocation follows from bytes actually present.
+fn decode_meshopt(
+    root: &Node,
+    buffers: &mut [Buffer<'_>],
+    limits: &LoadLimits,
+) -> Result<(), SceneError> {
+    let views = root
+        .get("bufferViews")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let mut decoded: Vec<(usize, usize, Vec<u8>)> = Vec::new();
+    for (v, view) in views.iter().enumerate() {
+        let Some(ext) = view
+            .get("extensions")
+            .and_then(|e| e.get("EXT_meshopt_compression"))
+        else {
+            continue;
+        };
+        let path = format!("bufferViews[{v}]");
+        let ext_path = format!("{path}.extensions.EXT_meshopt_compression");
+        let target = usize_member(view, "buffer", &path)?.unwrap_or(usize::MAX);
+        if buffers
+            .get(target)
+            .is_none_or(|b| b.source != BufferSource::Empty)
+        {
+            continue;
+        }
+        let required = |key: &str| -> Result<usize, SceneError> {
+            usize_member(ext, key, &ext_path)?.ok_or_else(|| {
+                SceneError::malformed("malformed-gltf", format!("{ext_path}.{key} is missing"))
+            })
+        };
+        let source = required("buffer")?;
+        let offset = usize_member(ext, "byteOffset", &ext_path)?.unwrap_or(0);
+        let length = required("byteLength")?;
+        let stride = required("byteStride")?;
+        let count = required("count")?;
+        let name = |key: &str| ext.get(key).and_then(Node::as_str);
+        let mode = super::meshopt::Mode::from_name(name("mode").unwrap_or(""))
+            .map_err(|e| SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}")))?;
+        let filter = match name("filter") {
+            None => super::meshopt::Filter::None,
+            Some(f) => super::meshopt::Filter::from_name(f).map_err(|e| {
+                SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}"))
+            })?,
+        };
+        let data = buffers
+            .get(source)
+            .filter(|b| b.source != BufferSource::Empty)
+            .and_then(|b| b.bytes.get(offset..offset.checked_add(length)?))
+            .ok_or_else(|| {
+                SceneError::malformed(
+                    "malformed-meshopt",
+                    format!("{ext_path}: the compressed bytes lie outside buffers[{source}]"),
+                )
+            })?;
+        let bytes = super::meshopt::decode(
+            &super::meshopt::Compressed {
+                data,
+                count,
+                byte_stride: stride,
+                mode,
+                filter,
+            },
+            limits.max_buffer_bytes,
+        )
+        .map_err(|e| SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}")))?;
+        let at = usize_member(view, "byteOffset", &path)?.unwrap_or(0);
+        decoded.push((target, at, bytes));
+    }
+    // Exporters pack a fallback buffer's views end to end; a gap far larger than the data would
+    // be an allocation the file's bytes do not justify.
+    let total: usize = decoded.iter().map(|(_, _, b)| b.len()).sum();
+    let reach = total.saturating_mul(2).saturating_add(1 << 16);
+    for (target, at, bytes) in decoded {
+        let end = at
+            .checked_add(bytes.len())
+            .filter(|&end| end <= limits.max_buffer_bytes && end <= reach)
+            .ok_or_else(|| {
+                SceneError::too_large(
+                    "buffer-too-large",
+                    format!("a decoded EXT_meshopt_compression view of buffers[{target}] ends past the limit"),
+                )
+            })?;
+        let Some(buffer) = buffers.get_mut(target) else {
+            continue;
+        };
+        let data = buffer.bytes.to_mut();
+        if data.len() < end {
+            data.resize(end, 0);
+        }
+        data[at..end].copy_from_slice(&bytes);
+    }
+    Ok(())
 }
 
 /// The error for a URI that could not be resolved: missing or refused is the caller's omission

@@ -124,12 +124,6 @@ pub fn process<'a>(
             "the file requires KHR_draco_mesh_compression, which tspace does not decode; export it without Draco, or with an uncompressed fallback",
         ));
     }
-    if extension_listed(root, "extensionsRequired", "EXT_meshopt_compression") {
-        return Err(SceneError::unprocessable(
-            "meshopt-required",
-            "the file requires EXT_meshopt_compression, which tspace does not decode yet; export it without meshopt compression",
-        ));
-    }
 
     let plans = plan::plan(
         root,
@@ -232,7 +226,13 @@ pub fn process<'a>(
             load::Container::Glb => "glb",
             load::Container::Json => "gltf",
         },
-        input_bytes: bytes.len() as u64,
+        input_bytes: bytes.len() as u64
+            + loaded
+                .buffers
+                .iter()
+                .filter(|b| matches!(b.source, load::BufferSource::External(_)))
+                .map(|b| b.bytes.len() as u64)
+                .sum::<u64>(),
         method: options.method.name(),
         overwrite: options.overwrite,
         all: options.all,
@@ -358,6 +358,7 @@ pub fn process<'a>(
         Some(bytes.to_vec())
     } else {
         let written = write::write(&loaded, &changes, options.format, resources)?;
+        report.input_bytes += written.embedded_image_bytes;
         report.dropped = written.dropped;
         report.warnings.extend(written.warnings);
         Some(written.bytes)

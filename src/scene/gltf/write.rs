@@ -307,6 +307,8 @@ fn min_max_of(
 /// What [`write`] produced.
 pub struct Written {
     pub bytes: Vec<u8>,
+    /// Bytes of external images the output now embeds.
+    pub embedded_image_bytes: u64,
     pub dropped: Dropped,
     pub warnings: Vec<String>,
 }
@@ -878,8 +880,20 @@ pub fn write(
         .map_err(|e| SceneError::too_large("output-too-large", format!("the output {e}")))?,
         OutputFormat::GltfEmbedded => json_text.into_bytes(),
     };
+    let embedded_image_bytes = image_views
+        .iter()
+        .filter(|(i, _, _)| {
+            images
+                .get(*i)
+                .and_then(|im| im.get("uri"))
+                .and_then(Node::as_str)
+                .is_some_and(|u| uri::decode_data_uri(u).is_none())
+        })
+        .map(|&(_, d, _)| image_data.get(d).map_or(0, |d| d.len() as u64))
+        .sum();
     Ok(Written {
         bytes,
+        embedded_image_bytes,
         dropped,
         warnings,
     })
