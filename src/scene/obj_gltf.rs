@@ -1,1 +1,2621 @@
-//! OBJ (+ MTL) to a glTF document (in progress).
+//! A parsed OBJ (and its MTL) turned into a glTF 2.0 document: JSON text plus one binary buffer,
+//! so the rest of tspace can treat an OBJ exactly like a GLB. No tangents or normals are made
+//! here; the tangent step does that later, to the converted document.
+//!
+//! # Structure
+//!
+//! - **Objects**: each run of faces under one `o` name becomes one node and one mesh carrying
+//!   that name (faces before any `o` form an unnamed object). Two `o` blocks of the same name
+//!   separated by another object stay two nodes, as two `o` statements made them.
+//! - **Primitives**: one per (material, has UVs, has normals) signature within an object, in
+//!   order of first use, merging every run of that signature across the object. Each is indexed
+//!   `TRIANGLES`; corners are deduplicated by their (position, uv, normal) index triple, so an
+//!   OBJ vertex shared by faces stays shared. Indices are `u16` when the primitive has at most
+//!   65535 vertices (the largest index is then 65534, never the 65535 primitive-restart value),
+//!   `u32` otherwise.
+//! - **Attributes**, each in its own tightly packed, 4-byte aligned buffer view: `POSITION`
+//!   (with `min`/`max`), `NORMAL` (scaled to unit length), `TEXCOORD_0` (`v` flipped to
+//!   `1 - v`: OBJ's origin is the bottom left, glTF's the top left) and `COLOR_0` (float RGB,
+//!   when the OBJ has vertex colours). `NORMAL` and `TEXCOORD_0` appear only on primitives whose
+//!   faces had them.
+//! - **Coordinates** are copied as they are: OBJ has no declared up axis or unit, and most
+//!   exporters write glTF's (+Y up, metres or unknown). Winding is kept (both formats have
+//!   counter-clockwise front faces).
+//!
+//! # Flawed values
+//!
+//! The Khronos glTF-Validator reports a non-unit normal (`ACCESSOR_VECTOR3_NON_UNIT`), a
+//! non-finite value (`ACCESSOR_INVALID_FLOAT`) and a colour outside `[0, 1]`
+//! (`ACCESSOR_NON_CLAMPED`) as errors, not warnings. So:
+//!
+//! - Normals are scaled to unit length. A triangle with a corner whose normal has zero length
+//!   or a non-finite component is written without normals (it joins its object's primitive
+//!   without `NORMAL`), like the OBJ reader's faces with normals on some corners only; the
+//!   tangent step generates normals for it. Likewise a triangle with a non-finite texture
+//!   coordinate loses its texture coordinates. Both are counted in a warning.
+//! - Vertex colours are clamped to `[0, 1]` (a NaN component becomes 1), counted in a warning.
+//! - Non-finite positions are kept (there is nothing to replace them with); `POSITION`'s
+//!   `min`/`max` cover the finite values only, and a warning says so. A primitive with no finite
+//!   value at all on some axis has no meaningful bounds, and glTF requires them, so that is an
+//!   error ([`ConvertError::NoFinitePosition`]).
+//!
+//! # Materials (from the MTL; only those used, in order of first use)
+//!
+//! - Without an MTL no material is written and primitives have none (a warning says when the
+//!   OBJ named materials). A `usemtl` name the MTL lacks gets a plain material of that name
+//!   (white, non-metallic, fully rough) and a warning; faces without `usemtl` get no material.
+//! - `baseColorFactor` is `Kd` (white when absent, so a `map_Kd` alone shows as it is) with
+//!   alpha `d`; `alphaMode` is `BLEND` when `d < 1`. Colours and factors are clamped to
+//!   `[0, 1]` as glTF requires (a warning names materials clamped or with non-finite values,
+//!   which get the default).
+//! - `metallicFactor` is `Pm`, else 0. `roughnessFactor` is `Pr`, else derived from the Phong
+//!   exponent `Ns`: the usual Blinn-Phong-to-microfacet match gives the distribution width
+//!   `alpha = sqrt(2 / (Ns + 2))`, and glTF's roughness is the *perceptual* roughness whose
+//!   square is alpha, so `roughness = (2 / (Ns + 2))^(1/4)` (`Ns` 0 gives 1, 10 gives 0.64, 100
+//!   gives 0.37, 1000 gives 0.21). A black `Ks` (no highlight at all) gives roughness 1
+//!   whatever `Ns` says. Without `Ns`, roughness is 1. `Ks`'s colour is otherwise unused.
+//! - `emissiveFactor` is `Ke`. When a component exceeds 1, the factor is `Ke` divided by its
+//!   largest component and `KHR_materials_emissive_strength` carries that component, so
+//!   nothing is lost.
+//! - `map_Kd` becomes `baseColorTexture`; `norm`, else `map_Bump`/`bump`, becomes
+//!   `normalTexture` with `scale` = its `-bm` value when given. (A `bump` map may be a height
+//!   map; tspace cannot tell without decoding the image, and tangent-space normal maps are what
+//!   exporters write there in practice.) `map_d` and `map_Ks` are not converted (warning).
+//! - A texture's `-o` and `-s` become `KHR_texture_transform` on that texture reference. OBJ
+//!   samples its image at `t = o + s * uv` with V up; with glTF's `v' = 1 - v` on both the
+//!   coordinates and the image, `t'_v = 1 - (o_v + s_v (1 - v')) = (1 - o_v - s_v) + s_v v'`, so
+//!   glTF's `scale` is `(s_u, s_v)` and its `offset` is `(o_u, 1 - o_v - s_v)`.
+//! - A material with textures used by faces without texture coordinates gets a second copy
+//!   without texture references for those faces (glTF forbids a texture the primitive has no
+//!   coordinates for), with a warning.
+//!
+//! # Images
+//!
+//! Each distinct texture path becomes one image and one texture, all sharing one sampler
+//! (`REPEAT` both ways). Paths are read as relative paths with `\` taken as `/` (Windows
+//! exporters write `.\tex.jpg`); a path that is absolute, has a drive or scheme, or climbs out
+//! with `..` keeps only its file name (warning). If the caller supplied the file (looked up as
+//! written, as the cleaned path, then as the file name), it is embedded in the buffer with a
+//! `mimeType` sniffed from its first bytes: PNG and JPEG as core glTF, WebP through
+//! `EXT_texture_webp` (which is then required, as there is no fallback image). Anything else is
+//! not embedded. Images that are not embedded keep a relative, percent-encoded `uri` and are
+//! named in a warning. Images are never decoded.
+//!
+//! # Output
+//!
+//! Compact JSON with `asset`, `scene` 0, one scene of every node, and only non-empty arrays.
+//! Buffer 0 has no `uri` and a `byteLength` equal to the (4-byte padded) binary buffer's
+//! length: the caller decides between a GLB BIN chunk and a `data:` URI.
+//!
+//! Warnings here cover the conversion only; the OBJ and MTL readers' own are in
+//! [`Obj::warnings`] and [`Mtl::warnings`]. Memory is proportional to the parsed OBJ (at most
+//! three vertices per triangle) plus the embedded images, and the buffer's size is checked
+//! against [`ConvertLimits`] before it is allocated.
+
+use std::collections::HashMap;
+use std::fmt;
+
+use super::gltf::json::{escape_str, f32_text};
+use super::obj::{Corner, Material, Mtl, Obj, Texture};
+use super::uri::PartSet;
+
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
+const UNSIGNED_INT: u32 = 5125;
+const REPEAT: u32 = 10497;
+const TRIANGLES: u32 = 4;
+
+const TEXTURE_TRANSFORM: &str = "KHR_texture_transform";
+const EMISSIVE_STRENGTH: &str = "KHR_materials_emissive_strength";
+const TEXTURE_WEBP: &str = "EXT_texture_webp";
+
+/// The most vertices a primitive may have for `u16` indices: its largest index is then 65534,
+/// never 65535, which would be the primitive-restart value.
+const MAX_U16_VERTICES: usize = 65535;
+
+/// How many names a warning lists before it says how many more there are.
+const NAMES_IN_WARNING: usize = 8;
+
+/// Caps on the conversion's output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConvertLimits {
+    /// The largest binary buffer (attributes, indices and embedded images) to build. The
+    /// default is the largest multiple of 4 a GLB chunk length can hold.
+    pub max_buffer_bytes: u64,
+}
+
+impl Default for ConvertLimits {
+    fn default() -> Self {
+        ConvertLimits {
+            max_buffer_bytes: u64::from(u32::MAX) & !3,
+        }
+    }
+}
+
+/// What the conversion produced, in numbers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ConversionStats {
+    /// Nodes, one mesh each.
+    pub meshes: usize,
+    pub primitives: usize,
+    /// Vertices after deduplication, summed over the primitives.
+    pub vertices: usize,
+    pub triangles: usize,
+    pub materials: usize,
+    pub images_embedded: usize,
+    /// Images written as a relative `uri`, because they were not supplied or not embeddable.
+    pub images_referenced: usize,
+}
+
+/// A converted OBJ: a glTF 2.0 JSON document whose buffer 0 (without a `uri`) is `bin`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Converted {
+    pub json: String,
+    /// Buffer 0, padded with zeros to a multiple of 4 bytes.
+    pub bin: Vec<u8>,
+    /// What the conversion changed, dropped or could not find, one sentence each.
+    pub warnings: Vec<String>,
+    pub stats: ConversionStats,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ConvertError {
+    /// The OBJ has no faces (only points, lines, or nothing): there is no mesh to make.
+    NoFaces,
+    /// A corner refers past the end of one of the [`Obj`]'s arrays. [`super::obj::parse_obj`]
+    /// never produces this; a hand-built [`Obj`] can.
+    IndexOutOfRange {
+        what: &'static str,
+        index: u32,
+        count: usize,
+    },
+    /// Every value of one coordinate in a primitive is NaN or infinite, so the `POSITION`
+    /// bounds glTF requires do not exist.
+    NoFinitePosition {
+        mesh: usize,
+        primitive: usize,
+        axis: char,
+    },
+    /// A count or size beyond what glTF (u32 lengths) or [`ConvertLimits`] allows.
+    TooLarge {
+        what: &'static str,
+        value: u64,
+        limit: u64,
+    },
+}
+
+impl fmt::Display for ConvertError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConvertError::NoFaces => write!(
+                f,
+                "the OBJ has no faces (f statements with 3 or more corners): nothing to convert"
+            ),
+            ConvertError::IndexOutOfRange { what, index, count } => write!(
+                f,
+                "a face refers to {what} {index} (counted from 0), but there are only {count}"
+            ),
+            ConvertError::NoFinitePosition {
+                mesh,
+                primitive,
+                axis,
+            } => write!(
+                f,
+                "mesh {mesh} primitive {primitive}: every {axis} coordinate is NaN or infinite, \
+                 so its POSITION has no bounds"
+            ),
+            ConvertError::TooLarge { what, value, limit } => {
+                write!(f, "{what} would be {value}, more than the limit of {limit}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ConvertError {}
+
+fn too_large(what: &'static str, value: impl TryInto<u64>, limit: u64) -> ConvertError {
+    ConvertError::TooLarge {
+        what,
+        value: value.try_into().unwrap_or(u64::MAX),
+        limit,
+    }
+}
+
+fn to_u32(what: &'static str, value: usize) -> Result<u32, ConvertError> {
+    u32::try_from(value).map_err(|_| too_large(what, value, u64::from(u32::MAX)))
+}
+
+/// Which primitive a triangle joins within its object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct Signature<'o> {
+    material: Option<&'o str>,
+    uv: bool,
+    normal: bool,
+}
+
+struct Primitive<'o> {
+    signature: Signature<'o>,
+    /// Unique corners, in order of first use: vertex `i` is `vertices[i]`.
+    vertices: Vec<Corner>,
+    indices: Vec<u32>,
+}
+
+struct Mesh<'o> {
+    name: Option<&'o str>,
+    primitives: Vec<Primitive<'o>>,
+}
+
+/// Builds a mesh's primitives, deduplicating corners per primitive.
+struct MeshBuilder<'o> {
+    name: Option<&'o str>,
+    primitives: Vec<Primitive<'o>>,
+    by_signature: HashMap<Signature<'o>, usize>,
+    /// One map per primitive, from a corner to its vertex index.
+    vertex_maps: Vec<HashMap<Corner, u32>>,
+}
+
+impl<'o> MeshBuilder<'o> {
+    fn new(name: Option<&'o str>) -> Self {
+        MeshBuilder {
+            name,
+            primitives: Vec::new(),
+            by_signature: HashMap::new(),
+            vertex_maps: Vec::new(),
+        }
+    }
+
+    fn add(&mut self, signature: Signature<'o>, triangle: [Corner; 3]) -> Result<(), ConvertError> {
+        let slot = *self.by_signature.entry(signature).or_insert_with(|| {
+            self.primitives.push(Primitive {
+                signature,
+                vertices: Vec::new(),
+                indices: Vec::new(),
+            });
+            self.vertex_maps.push(HashMap::new());
+            self.primitives.len() - 1
+        });
+        let (Some(primitive), Some(map)) = (
+            self.primitives.get_mut(slot),
+            self.vertex_maps.get_mut(slot),
+        ) else {
+            return Ok(()); // Unreachable: both vectors grow together.
+        };
+        for corner in triangle {
+            let next = primitive.vertices.len();
+            let index = match map.get(&corner) {
+                Some(&index) => index,
+                None => {
+                    let index = to_u32("the vertex count of one primitive", next)?;
+                    map.insert(corner, index);
+                    primitive.vertices.push(corner);
+                    index
+                }
+            };
+            primitive.indices.push(index);
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> Mesh<'o> {
+        Mesh {
+            name: self.name,
+            primitives: self.primitives,
+        }
+    }
+}
+
+fn check_index(what: &'static str, index: Option<u32>, count: usize) -> Result<(), ConvertError> {
+    match index {
+        Some(i) if i as usize >= count => Err(ConvertError::IndexOutOfRange {
+            what,
+            index: i,
+            count,
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// What [`plan_meshes`] dropped, in triangles.
+#[derive(Default)]
+struct Dropped {
+    /// UVs or normals on some corners only (the OBJ reader never produces these).
+    partial: usize,
+    /// Normals of zero length or not finite on some corner.
+    normals: usize,
+    /// Texture coordinates not finite on some corner.
+    uvs: usize,
+}
+
+/// Whether a normal can be scaled to unit length.
+fn usable_normal(n: [f32; 3]) -> bool {
+    let v = n.map(f64::from);
+    let length_squared = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    length_squared.is_finite() && length_squared > 0.0
+}
+
+/// Splits the OBJ's face groups into meshes and primitives, dropping from each triangle an
+/// attribute that is missing or unusable on any of its corners (see the module documentation).
+fn plan_meshes(obj: &Obj) -> Result<(Vec<Mesh<'_>>, Dropped), ConvertError> {
+    let mut meshes = Vec::new();
+    let mut current: Option<MeshBuilder<'_>> = None;
+    let mut dropped = Dropped::default();
+    let colors = obj.colors.as_ref().map(Vec::len);
+    for group in &obj.groups {
+        if group.triangles.is_empty() {
+            continue;
+        }
+        let object = group.object.as_deref();
+        if current.as_ref().is_none_or(|m| m.name != object) {
+            if let Some(done) = current.take() {
+                meshes.push(done.finish());
+            }
+            current = Some(MeshBuilder::new(object));
+        }
+        let Some(builder) = current.as_mut() else {
+            continue; // Unreachable: set just above.
+        };
+        let material = group.material.as_deref();
+        for triangle in &group.triangles {
+            for c in triangle {
+                check_index("position", Some(c.position), obj.positions.len())?;
+                check_index("texture coordinate", c.uv, obj.uvs.len())?;
+                check_index("normal", c.normal, obj.normals.len())?;
+                if let Some(count) = colors {
+                    check_index("vertex colour", Some(c.position), count)?;
+                }
+            }
+            let uvs = triangle.iter().filter(|c| c.uv.is_some()).count();
+            let normals = triangle.iter().filter(|c| c.normal.is_some()).count();
+            if uvs % 3 != 0 || normals % 3 != 0 {
+                dropped.partial += 1;
+            }
+            let mut has_uv = uvs == 3;
+            let mut has_normal = normals == 3;
+            if has_uv {
+                let finite = |c: &Corner| {
+                    c.uv.and_then(|i| obj.uvs.get(i as usize))
+                        .is_some_and(|uv| uv.iter().all(|v| v.is_finite()))
+                };
+                if !triangle.iter().all(finite) {
+                    has_uv = false;
+                    dropped.uvs += 1;
+                }
+            }
+            if has_normal {
+                let usable = |c: &Corner| {
+                    c.normal
+                        .and_then(|i| obj.normals.get(i as usize))
+                        .is_some_and(|&n| usable_normal(n))
+                };
+                if !triangle.iter().all(usable) {
+                    has_normal = false;
+                    dropped.normals += 1;
+                }
+            }
+            let mut triangle = *triangle;
+            for c in &mut triangle {
+                c.uv = c.uv.filter(|_| has_uv);
+                c.normal = c.normal.filter(|_| has_normal);
+            }
+            let signature = Signature {
+                material,
+                uv: has_uv,
+                normal: has_normal,
+            };
+            builder.add(signature, triangle)?;
+        }
+    }
+    if let Some(done) = current {
+        meshes.push(done.finish());
+    }
+    if meshes.is_empty() {
+        return Err(ConvertError::NoFaces);
+    }
+    Ok((meshes, dropped))
+}
+
+/// A material as written to the document.
+struct MaterialPlan<'m> {
+    name: &'m str,
+    /// `None` for a `usemtl` name the MTL lacks.
+    source: Option<&'m Material>,
+    /// Whether texture references are written (false for the copy used by faces without UVs).
+    textured: bool,
+}
+
+fn has_textures(m: &Material) -> bool {
+    m.diffuse_map.is_some() || m.normal_map.is_some() || m.bump_map.is_some()
+}
+
+/// The texture `normalTexture` comes from: `norm`, else `map_Bump`/`bump`.
+fn normal_source(m: &Material) -> Option<&Texture> {
+    m.normal_map.as_ref().or(m.bump_map.as_ref())
+}
+
+/// `names` as a list for a warning: the first few quoted, then how many more.
+fn name_list(names: &[String]) -> String {
+    let quoted: Vec<String> = names
+        .iter()
+        .take(NAMES_IN_WARNING)
+        .map(|n| format!("{n:?}"))
+        .collect();
+    item_list(&quoted, names.len())
+}
+
+/// The first few of `items` (of `total`), then how many more.
+fn item_list(items: &[String], total: usize) -> String {
+    let shown = items.len().min(NAMES_IN_WARNING);
+    let mut out = items.get(..shown).unwrap_or_default().join(", ");
+    if total > shown {
+        out += &format!(" and {} more", total - shown);
+    }
+    out
+}
+
+/// A texture path read as a relative path: `\` taken as `/`, empty and `.` segments dropped.
+/// When the path is absolute, has a drive or scheme, or has a `..` segment, only its file name
+/// is kept (`reduced`). `None` when there is no file name at all.
+struct CleanPath {
+    path: String,
+    file_name: String,
+    reduced: bool,
+}
+
+fn clean_path(path: &str) -> Option<CleanPath> {
+    let slashed = path.replace('\\', "/");
+    if slashed.ends_with('/') {
+        return None;
+    }
+    let segments: Vec<&str> = slashed
+        .split('/')
+        .filter(|s| !s.is_empty() && *s != ".")
+        .collect();
+    let last = *segments.last()?;
+    if last == ".." {
+        return None;
+    }
+    // A colon means a drive (`C:`) or a scheme (`file:`); the name is what follows the last one.
+    let file_name = last.rsplit(':').next().unwrap_or(last);
+    if file_name.is_empty() {
+        return None;
+    }
+    let reduced = slashed.starts_with('/') || slashed.contains(':') || segments.contains(&"..");
+    let path = if reduced {
+        file_name.to_owned()
+    } else {
+        segments.join("/")
+    };
+    Some(CleanPath {
+        path,
+        file_name: file_name.to_owned(),
+        reduced,
+    })
+}
+
+/// `path` as a URI reference: every byte except RFC 3986's unreserved characters and `/`
+/// percent-encoded (so spaces, `%`, `:`, `#`, `?` and non-ASCII are all escaped).
+fn percent_encode_path(path: &str) -> String {
+    let mut out = String::with_capacity(path.len());
+    for &b in path.as_bytes() {
+        if b.is_ascii_alphanumeric() || matches!(b, b'-' | b'.' | b'_' | b'~' | b'/') {
+            out.push(char::from(b));
+        } else {
+            out.push_str(&format!("%{b:02X}"));
+        }
+    }
+    out
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ImageFormat {
+    Png,
+    Jpeg,
+    Webp,
+}
+
+impl ImageFormat {
+    fn sniff(bytes: &[u8]) -> Option<Self> {
+        if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+            Some(ImageFormat::Png)
+        } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+            Some(ImageFormat::Jpeg)
+        } else if bytes.len() >= 12
+            && bytes.starts_with(b"RIFF")
+            && bytes.get(8..12) == Some(b"WEBP")
+        {
+            Some(ImageFormat::Webp)
+        } else {
+            None
+        }
+    }
+
+    fn mime(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "image/png",
+            ImageFormat::Jpeg => "image/jpeg",
+            ImageFormat::Webp => "image/webp",
+        }
+    }
+}
+
+struct ImagePlan<'p> {
+    /// The file name, as the image's `name`.
+    name: String,
+    /// The relative path, for the `uri` when the image is not embedded.
+    path: String,
+    embedded: Option<(&'p [u8], ImageFormat)>,
+}
+
+/// The images and textures (one per image) the used materials need.
+#[derive(Default)]
+struct ImageTable<'p> {
+    images: Vec<ImagePlan<'p>>,
+    by_path: HashMap<String, usize>,
+    /// Texture paths that had no file name at all (and the same as a set).
+    unusable: Vec<String>,
+    unusable_seen: std::collections::HashSet<String>,
+    /// Texture paths reduced to their file name.
+    reduced: Vec<String>,
+    /// Images not supplied.
+    missing: Vec<String>,
+    /// Images supplied in a format glTF cannot embed.
+    unknown_format: Vec<String>,
+}
+
+impl<'p> ImageTable<'p> {
+    /// The texture (and image) index for `texture`, adding it on first use; `None` when the
+    /// path names no file.
+    fn texture(&mut self, texture: &Texture, parts: &PartSet<'p>) -> Option<usize> {
+        let Some(clean) = clean_path(&texture.path) else {
+            if self.unusable_seen.insert(texture.path.clone()) {
+                self.unusable.push(texture.path.clone());
+            }
+            return None;
+        };
+        if let Some(&index) = self.by_path.get(&clean.path) {
+            return Some(index);
+        }
+        if clean.reduced {
+            self.reduced.push(texture.path.clone());
+        }
+        let mut candidates = vec![texture.path.as_str(), clean.path.as_str()];
+        candidates.push(clean.file_name.as_str());
+        let bytes = candidates.iter().find_map(|c| parts.get(c).ok());
+        let embedded = match bytes {
+            None => {
+                self.missing.push(clean.path.clone());
+                None
+            }
+            Some(bytes) => match ImageFormat::sniff(bytes) {
+                Some(format) => Some((bytes, format)),
+                None => {
+                    self.unknown_format.push(clean.path.clone());
+                    None
+                }
+            },
+        };
+        let index = self.images.len();
+        self.images.push(ImagePlan {
+            name: clean.file_name,
+            path: clean.path.clone(),
+            embedded,
+        });
+        self.by_path.insert(clean.path, index);
+        Some(index)
+    }
+}
+
+/// A `KHR_texture_transform` (rotation 0, texture coordinate set 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Transform {
+    offset: [f32; 2],
+    scale: [f32; 2],
+}
+
+/// A texture reference as written: the texture index and the `KHR_texture_transform`, if any.
+struct TextureRef {
+    index: usize,
+    transform: Option<Transform>,
+}
+
+/// glTF's `(offset, scale)` for an OBJ texture's `-o` and `-s` (see the module documentation),
+/// or `None` when they are absent, the identity, or not finite (`Err`).
+fn texture_transform(t: &Texture) -> Result<Option<Transform>, ()> {
+    if t.offset.is_none() && t.scale.is_none() {
+        return Ok(None);
+    }
+    let [ou, ov, _] = t.offset.unwrap_or([0.0; 3]);
+    let [su, sv, _] = t.scale.unwrap_or([1.0; 3]);
+    let offset = [ou, 1.0 - ov - sv];
+    let scale = [su, sv];
+    if offset.iter().chain(&scale).any(|v| !v.is_finite()) {
+        return Err(());
+    }
+    if offset == [0.0, 0.0] && scale == [1.0, 1.0] {
+        return Ok(None);
+    }
+    Ok(Some(Transform { offset, scale }))
+}
+
+/// Material values as glTF wants them, plus whether anything had to be clamped or replaced.
+struct Pbr {
+    base_color: [f32; 4],
+    metallic: f32,
+    roughness: f32,
+    emissive: [f32; 3],
+    emissive_strength: Option<f32>,
+    blend: bool,
+    adjusted: bool,
+}
+
+/// Clamps to [0, 1]; a non-finite value becomes `default`. Sets `adjusted` on any change.
+fn unit(v: f32, default: f32, adjusted: &mut bool) -> f32 {
+    let out = if v.is_finite() {
+        v.clamp(0.0, 1.0)
+    } else {
+        default
+    };
+    if out.to_bits() != v.to_bits() {
+        *adjusted = true;
+    }
+    out
+}
+
+/// `roughness = (2 / (Ns + 2))^(1/4)`; see the module documentation.
+fn roughness_from_shininess(ns: f32) -> f32 {
+    let ns = f64::from(ns.max(0.0));
+    (2.0 / (ns + 2.0)).sqrt().sqrt() as f32
+}
+
+fn pbr(m: &Material) -> Pbr {
+    let mut adjusted = false;
+    let [r, g, b] = m.diffuse.unwrap_or([1.0; 3]);
+    let alpha = unit(m.dissolve.unwrap_or(1.0), 1.0, &mut adjusted);
+    let base_color = [
+        unit(r, 1.0, &mut adjusted),
+        unit(g, 1.0, &mut adjusted),
+        unit(b, 1.0, &mut adjusted),
+        alpha,
+    ];
+    let metallic = unit(m.metallic.unwrap_or(0.0), 0.0, &mut adjusted);
+    let black_specular = m.specular.is_some_and(|s| s.iter().all(|&c| c == 0.0));
+    let derived = match m.shininess {
+        _ if black_specular => 1.0,
+        Some(ns) if ns.is_finite() => roughness_from_shininess(ns),
+        Some(_) => {
+            adjusted = true;
+            1.0
+        }
+        None => 1.0,
+    };
+    let roughness = unit(m.roughness.unwrap_or(derived), 1.0, &mut adjusted);
+    let mut emissive = [0.0; 3];
+    let mut emissive_strength = None;
+    if let Some(ke) = m.emissive {
+        if ke.iter().all(|c| c.is_finite()) {
+            let ke = ke.map(|c| {
+                if c < 0.0 {
+                    adjusted = true;
+                }
+                c.max(0.0)
+            });
+            let peak = ke.iter().copied().fold(0.0f32, f32::max);
+            if peak > 1.0 {
+                emissive = ke.map(|c| (c / peak).min(1.0));
+                emissive_strength = Some(peak);
+            } else {
+                emissive = ke;
+            }
+        } else {
+            adjusted = true;
+        }
+    }
+    Pbr {
+        base_color,
+        metallic,
+        roughness,
+        emissive,
+        emissive_strength,
+        blend: alpha < 1.0,
+        adjusted,
+    }
+}
+
+/// Where an attribute or index list, or an image, sits in the buffer.
+struct View {
+    offset: usize,
+    length: usize,
+    target: Option<u32>,
+}
+
+struct Accessor {
+    view: usize,
+    component_type: u32,
+    count: usize,
+    kind: &'static str,
+    bounds: Option<([f32; 3], [f32; 3])>,
+}
+
+/// The buffer under construction, with its views.
+struct Bin {
+    bytes: Vec<u8>,
+    views: Vec<View>,
+}
+
+impl Bin {
+    /// Appends `data`, padded with zeros to a multiple of 4, as a new view.
+    fn view(&mut self, data: &[u8], target: Option<u32>) -> usize {
+        let offset = self.bytes.len();
+        self.bytes.extend_from_slice(data);
+        self.bytes.resize(self.bytes.len().next_multiple_of(4), 0);
+        self.views.push(View {
+            offset,
+            length: data.len(),
+            target,
+        });
+        self.views.len() - 1
+    }
+
+    /// Appends `values` as little-endian f32 in a view of its own.
+    fn floats<const N: usize>(&mut self, values: impl Iterator<Item = [f32; N]>) -> usize {
+        let offset = self.bytes.len();
+        for v in values {
+            for c in v {
+                self.bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        self.views.push(View {
+            offset,
+            length: self.bytes.len() - offset,
+            target: Some(ARRAY_BUFFER),
+        });
+        self.views.len() - 1
+    }
+}
+
+/// A primitive's attribute accessors (by attribute name) and its index accessor.
+struct PrimitiveAccessors {
+    attributes: Vec<(&'static str, usize)>,
+    indices: usize,
+}
+
+/// Counts of flawed values, for warnings.
+#[derive(Default)]
+struct Flaws {
+    nonfinite_positions: usize,
+    colors_clamped: usize,
+}
+
+/// `n` scaled to unit length; `n` itself if it has none ([`plan_meshes`] keeps those out).
+fn normalize(n: [f32; 3]) -> [f32; 3] {
+    let v = n.map(f64::from);
+    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if length.is_finite() && length > 0.0 {
+        v.map(|c| (c / length) as f32)
+    } else {
+        n
+    }
+}
+
+/// Bytes each vertex of `signature` takes in the buffer.
+fn vertex_bytes(signature: &Signature<'_>, colors: bool) -> u64 {
+    12 + 12 * u64::from(signature.normal) + 8 * u64::from(signature.uv) + 12 * u64::from(colors)
+}
+
+/// The JSON number for `v`, which callers keep finite (0 if not, which never happens).
+fn num(v: f32) -> String {
+    f32_text(v).unwrap_or_else(|| "0".to_owned())
+}
+
+fn num_array(values: &[f32]) -> String {
+    let items: Vec<String> = values.iter().map(|&v| num(v)).collect();
+    format!("[{}]", items.join(","))
+}
+
+impl Dropped {
+    fn warn(&self, warnings: &mut Vec<String>) {
+        if self.partial > 0 {
+            warnings.push(format!(
+                "{} triangles had texture coordinates or normals on some corners only; those \
+                 attributes were dropped from them",
+                self.partial
+            ));
+        }
+        if self.normals > 0 {
+            warnings.push(format!(
+                "{} triangles use a normal of zero length or not finite, which glTF does not \
+                 allow; they were written without normals (the tangent step generates them)",
+                self.normals
+            ));
+        }
+        if self.uvs > 0 {
+            warnings.push(format!(
+                "{} triangles use a texture coordinate that is NaN or infinite; they were written \
+                 without texture coordinates",
+                self.uvs
+            ));
+        }
+    }
+}
+
+/// The materials to write, in order of first use, and each primitive's material (per mesh).
+struct MaterialTable<'a> {
+    materials: Vec<MaterialPlan<'a>>,
+    per_primitive: Vec<Vec<Option<usize>>>,
+}
+
+fn plan_materials<'a>(
+    meshes: &[Mesh<'a>],
+    mtl: Option<&'a Mtl>,
+    warnings: &mut Vec<String>,
+) -> MaterialTable<'a> {
+    let mut materials: Vec<MaterialPlan<'_>> = Vec::new();
+    let mut material_slots: HashMap<(&str, bool), usize> = HashMap::new();
+    let mut primitive_materials: Vec<Vec<Option<usize>>> = Vec::new();
+    let mut missing_materials: Vec<String> = Vec::new();
+    let mut untextured_copies: Vec<String> = Vec::new();
+    let mut unnamed_without_mtl = false;
+    for mesh in meshes {
+        let mut slots = Vec::with_capacity(mesh.primitives.len());
+        for primitive in &mesh.primitives {
+            let (Some(name), Some(mtl)) = (primitive.signature.material, mtl) else {
+                unnamed_without_mtl |= primitive.signature.material.is_some();
+                slots.push(None);
+                continue;
+            };
+            let source = mtl.get(name);
+            let textured = source.is_some_and(has_textures) && primitive.signature.uv;
+            let stripped = source.is_some_and(has_textures) && !primitive.signature.uv;
+            let slot = *material_slots.entry((name, textured)).or_insert_with(|| {
+                if source.is_none() {
+                    missing_materials.push(name.to_owned());
+                }
+                if stripped {
+                    untextured_copies.push(name.to_owned());
+                }
+                materials.push(MaterialPlan {
+                    name,
+                    source,
+                    textured,
+                });
+                materials.len() - 1
+            });
+            slots.push(Some(slot));
+        }
+        primitive_materials.push(slots);
+    }
+    if unnamed_without_mtl {
+        warnings.push(
+            "the OBJ uses materials (usemtl) but no MTL was given: no materials were written"
+                .to_owned(),
+        );
+    }
+    if !missing_materials.is_empty() {
+        warnings.push(format!(
+            "materials not in the MTL, each given a plain white material of its name: {}",
+            name_list(&missing_materials)
+        ));
+    }
+    if !untextured_copies.is_empty() {
+        warnings.push(format!(
+            "materials with textures used by faces without texture coordinates; those faces \
+             got a copy without textures: {}",
+            name_list(&untextured_copies)
+        ));
+    }
+    MaterialTable {
+        materials,
+        per_primitive: primitive_materials,
+    }
+}
+
+/// A material's texture references.
+struct MaterialTextures {
+    base_color: Option<TextureRef>,
+    normal: Option<TextureRef>,
+}
+
+/// The images and textures of the used materials, and each material's references to them.
+/// Also warns about the maps glTF's core material has no place for.
+fn plan_textures<'p>(
+    materials: &[MaterialPlan<'_>],
+    images: &PartSet<'p>,
+    warnings: &mut Vec<String>,
+) -> (ImageTable<'p>, Vec<MaterialTextures>) {
+    let mut table = ImageTable::default();
+    let mut material_textures = Vec::with_capacity(materials.len());
+    let mut bad_transforms = Vec::new();
+    let mut unconverted_maps = Vec::new();
+    for plan in materials {
+        let mut refs = MaterialTextures {
+            base_color: None,
+            normal: None,
+        };
+        if let Some(m) = plan.source {
+            if plan.textured {
+                let mut reference = |t: &Texture| {
+                    let index = table.texture(t, images)?;
+                    let transform = texture_transform(t).unwrap_or_else(|()| {
+                        bad_transforms.push(t.path.clone());
+                        None
+                    });
+                    Some(TextureRef { index, transform })
+                };
+                refs.base_color = m.diffuse_map.as_ref().and_then(&mut reference);
+                refs.normal = normal_source(m).and_then(&mut reference);
+            }
+            for (what, map) in [("map_d", &m.dissolve_map), ("map_Ks", &m.specular_map)] {
+                if let Some(t) = map {
+                    unconverted_maps.push(format!("{what} {:?} of material {:?}", t.path, m.name));
+                }
+            }
+        }
+        material_textures.push(refs);
+    }
+    if !table.reduced.is_empty() {
+        warnings.push(format!(
+            "texture paths that are absolute or climb out of their folder, kept as their file \
+             name only: {}",
+            name_list(&table.reduced)
+        ));
+    }
+    if !table.unusable.is_empty() {
+        warnings.push(format!(
+            "texture paths without a file name, ignored: {}",
+            name_list(&table.unusable)
+        ));
+    }
+    if !table.missing.is_empty() {
+        warnings.push(format!(
+            "texture files not supplied, referenced by relative URI instead of embedded: {}",
+            name_list(&table.missing)
+        ));
+    }
+    if !table.unknown_format.is_empty() {
+        warnings.push(format!(
+            "texture files that are not PNG, JPEG or WebP, which glTF cannot embed; \
+             referenced by relative URI: {}",
+            name_list(&table.unknown_format)
+        ));
+    }
+    if !bad_transforms.is_empty() {
+        warnings.push(format!(
+            "textures with a non-finite -o or -s, written without a transform: {}",
+            name_list(&bad_transforms)
+        ));
+    }
+    if !unconverted_maps.is_empty() {
+        warnings.push(format!(
+            "texture maps glTF's core material has no place for, not converted: {}",
+            item_list(&unconverted_maps, unconverted_maps.len())
+        ));
+    }
+    (table, material_textures)
+}
+
+/// The binary buffer with its views, and the accessors into it.
+struct Written {
+    bin: Bin,
+    accessors: Vec<Accessor>,
+    /// Per mesh, per primitive.
+    primitives: Vec<Vec<PrimitiveAccessors>>,
+    /// Per image, its buffer view when embedded.
+    image_views: Vec<Option<usize>>,
+}
+
+/// Lays out the buffer: each primitive's attributes and indices, then the embedded images.
+/// Its size is checked against `limits` before anything is allocated.
+fn write_buffer(
+    obj: &Obj,
+    meshes: &[Mesh<'_>],
+    table: &ImageTable<'_>,
+    limits: &ConvertLimits,
+    warnings: &mut Vec<String>,
+    stats: &mut ConversionStats,
+) -> Result<Written, ConvertError> {
+    let colors = obj.colors.as_deref();
+    let mut total: u64 = 0;
+    for primitive in meshes.iter().flat_map(|m| &m.primitives) {
+        let vertices = primitive.vertices.len() as u64;
+        let index_size = if vertices <= MAX_U16_VERTICES as u64 {
+            2
+        } else {
+            4
+        };
+        let indices = primitive.indices.len() as u64;
+        total = total
+            .saturating_add(
+                vertices.saturating_mul(vertex_bytes(&primitive.signature, colors.is_some())),
+            )
+            .saturating_add(indices.saturating_mul(index_size).next_multiple_of(4));
+    }
+    for image in &table.images {
+        if let Some((bytes, _)) = image.embedded {
+            total = total.saturating_add((bytes.len() as u64).next_multiple_of(4));
+        }
+    }
+    if total > limits.max_buffer_bytes {
+        return Err(too_large(
+            "the binary buffer's size in bytes",
+            total,
+            limits.max_buffer_bytes,
+        ));
+    }
+    let capacity = usize::try_from(total).map_err(|_| {
+        too_large(
+            "the binary buffer's size in bytes",
+            total,
+            usize::MAX as u64,
+        )
+    })?;
+    let mut bin = Bin {
+        bytes: Vec::with_capacity(capacity),
+        views: Vec::new(),
+    };
+
+    let mut accessors: Vec<Accessor> = Vec::new();
+    let mut flaws = Flaws::default();
+    // Per primitive: (attribute name, accessor) pairs and the index accessor.
+    let mut primitive_accessors: Vec<Vec<PrimitiveAccessors>> = Vec::new();
+    for (mesh_index, mesh) in meshes.iter().enumerate() {
+        let mut per_mesh = Vec::with_capacity(mesh.primitives.len());
+        for (primitive_index, primitive) in mesh.primitives.iter().enumerate() {
+            let count = primitive.vertices.len();
+            to_u32("the vertex count of one primitive", count)?;
+            to_u32("the index count of one primitive", primitive.indices.len())?;
+            stats.primitives += 1;
+            stats.vertices += count;
+            stats.triangles += primitive.indices.len() / 3;
+            let mut attributes = Vec::new();
+
+            let position = |c: &Corner| {
+                obj.positions
+                    .get(c.position as usize)
+                    .copied()
+                    .unwrap_or_default()
+            };
+            let mut min = [f32::INFINITY; 3];
+            let mut max = [f32::NEG_INFINITY; 3];
+            for p in primitive.vertices.iter().map(position) {
+                if p.iter().any(|c| !c.is_finite()) {
+                    flaws.nonfinite_positions += 1;
+                }
+                for k in 0..3 {
+                    if p[k].is_finite() {
+                        min[k] = min[k].min(p[k]);
+                        max[k] = max[k].max(p[k]);
+                    }
+                }
+            }
+            if let Some(k) = (0..3).find(|&k| min[k] > max[k]) {
+                return Err(ConvertError::NoFinitePosition {
+                    mesh: mesh_index,
+                    primitive: primitive_index,
+                    axis: ['x', 'y', 'z'][k],
+                });
+            }
+            let view = bin.floats(primitive.vertices.iter().map(position));
+            attributes.push(("POSITION", accessors.len()));
+            accessors.push(Accessor {
+                view,
+                component_type: FLOAT,
+                count,
+                kind: "VEC3",
+                bounds: Some((min, max)),
+            });
+
+            if primitive.signature.normal {
+                let normals: Vec<[f32; 3]> = primitive
+                    .vertices
+                    .iter()
+                    .map(|c| {
+                        let n = c
+                            .normal
+                            .and_then(|i| obj.normals.get(i as usize))
+                            .copied()
+                            .unwrap_or_default();
+                        normalize(n)
+                    })
+                    .collect();
+                let view = bin.floats(normals.into_iter());
+                attributes.push(("NORMAL", accessors.len()));
+                accessors.push(Accessor {
+                    view,
+                    component_type: FLOAT,
+                    count,
+                    kind: "VEC3",
+                    bounds: None,
+                });
+            }
+            if primitive.signature.uv {
+                let uvs: Vec<[f32; 2]> = primitive
+                    .vertices
+                    .iter()
+                    .map(|c| {
+                        let [u, v] =
+                            c.uv.and_then(|i| obj.uvs.get(i as usize))
+                                .copied()
+                                .unwrap_or_default();
+                        [u, 1.0 - v]
+                    })
+                    .collect();
+                let view = bin.floats(uvs.into_iter());
+                attributes.push(("TEXCOORD_0", accessors.len()));
+                accessors.push(Accessor {
+                    view,
+                    component_type: FLOAT,
+                    count,
+                    kind: "VEC2",
+                    bounds: None,
+                });
+            }
+            if let Some(colors) = colors {
+                let values: Vec<[f32; 3]> = primitive
+                    .vertices
+                    .iter()
+                    .map(|c| {
+                        let color = colors.get(c.position as usize).copied().unwrap_or([1.0; 3]);
+                        let mut clamped = false;
+                        let color = color.map(|v| unit(v, 1.0, &mut clamped));
+                        flaws.colors_clamped += usize::from(clamped);
+                        color
+                    })
+                    .collect();
+                let view = bin.floats(values.into_iter());
+                attributes.push(("COLOR_0", accessors.len()));
+                accessors.push(Accessor {
+                    view,
+                    component_type: FLOAT,
+                    count,
+                    kind: "VEC3",
+                    bounds: None,
+                });
+            }
+
+            let (index_bytes, component_type) = if count <= MAX_U16_VERTICES {
+                let bytes: Vec<u8> = primitive
+                    .indices
+                    .iter()
+                    .flat_map(|&i| (i as u16).to_le_bytes())
+                    .collect();
+                (bytes, UNSIGNED_SHORT)
+            } else {
+                let bytes: Vec<u8> = primitive
+                    .indices
+                    .iter()
+                    .flat_map(|&i| i.to_le_bytes())
+                    .collect();
+                (bytes, UNSIGNED_INT)
+            };
+            let view = bin.view(&index_bytes, Some(ELEMENT_ARRAY_BUFFER));
+            let indices = accessors.len();
+            accessors.push(Accessor {
+                view,
+                component_type,
+                count: primitive.indices.len(),
+                kind: "SCALAR",
+                bounds: None,
+            });
+            per_mesh.push(PrimitiveAccessors {
+                attributes,
+                indices,
+            });
+        }
+        primitive_accessors.push(per_mesh);
+    }
+    if flaws.nonfinite_positions > 0 {
+        warnings.push(format!(
+            "{} vertices have a NaN or infinite position, kept as they are; POSITION min and \
+             max cover the finite values only",
+            flaws.nonfinite_positions
+        ));
+    }
+    if flaws.colors_clamped > 0 {
+        warnings.push(format!(
+            "{} vertex colours outside [0, 1] were clamped (a NaN component became 1)",
+            flaws.colors_clamped
+        ));
+    }
+
+    // Images, after the geometry.
+    let mut image_views: Vec<Option<usize>> = Vec::with_capacity(table.images.len());
+    for image in &table.images {
+        match image.embedded {
+            Some((bytes, _)) => {
+                image_views.push(Some(bin.view(bytes, None)));
+                stats.images_embedded += 1;
+            }
+            None => {
+                image_views.push(None);
+                stats.images_referenced += 1;
+            }
+        }
+    }
+    debug_assert_eq!(bin.bytes.len() as u64, total);
+    Ok(Written {
+        bin,
+        accessors,
+        primitives: primitive_accessors,
+        image_views,
+    })
+}
+
+/// The glTF extensions the document uses.
+#[derive(Default)]
+struct Extensions {
+    texture_transform: bool,
+    emissive_strength: bool,
+}
+
+/// Each material's JSON object, noting the extensions they use.
+fn materials_json(
+    materials: &[MaterialPlan<'_>],
+    textures: &[MaterialTextures],
+    extensions: &mut Extensions,
+    warnings: &mut Vec<String>,
+) -> Vec<String> {
+    let mut adjusted = Vec::new();
+    let mut adjusted_seen = std::collections::HashSet::new();
+    let mut material_json = Vec::with_capacity(materials.len());
+    let texture_info = |r: &TextureRef, extra: &str, uses_transform: &mut bool| {
+        let mut out = format!("{{\"index\":{}{extra}", r.index);
+        if let Some(Transform { offset, scale }) = r.transform {
+            *uses_transform = true;
+            out += &format!(
+                ",\"extensions\":{{\"{TEXTURE_TRANSFORM}\":{{\"offset\":{},\"scale\":{}}}}}",
+                num_array(&offset),
+                num_array(&scale)
+            );
+        }
+        out.push('}');
+        out
+    };
+    for (plan, refs) in materials.iter().zip(textures) {
+        let mut fields = vec![format!("\"name\":{}", escape_str(plan.name))];
+        let Some(m) = plan.source else {
+            fields.push("\"pbrMetallicRoughness\":{\"metallicFactor\":0}".to_owned());
+            material_json.push(format!("{{{}}}", fields.join(",")));
+            continue;
+        };
+        let values = pbr(m);
+        // A material and its untextured copy are one name in the warning.
+        if values.adjusted && adjusted_seen.insert(plan.name) {
+            adjusted.push(plan.name.to_owned());
+        }
+        let mut pbr_fields = Vec::new();
+        if values.base_color != [1.0; 4] {
+            pbr_fields.push(format!(
+                "\"baseColorFactor\":{}",
+                num_array(&values.base_color)
+            ));
+        }
+        if let Some(r) = &refs.base_color {
+            pbr_fields.push(format!(
+                "\"baseColorTexture\":{}",
+                texture_info(r, "", &mut extensions.texture_transform)
+            ));
+        }
+        pbr_fields.push(format!("\"metallicFactor\":{}", num(values.metallic)));
+        pbr_fields.push(format!("\"roughnessFactor\":{}", num(values.roughness)));
+        fields.push(format!(
+            "\"pbrMetallicRoughness\":{{{}}}",
+            pbr_fields.join(",")
+        ));
+        if let Some(r) = &refs.normal {
+            let scale = normal_source(m)
+                .and_then(|t| t.bump_multiplier)
+                .filter(|s| s.is_finite() && *s != 1.0)
+                .map(|s| format!(",\"scale\":{}", num(s)))
+                .unwrap_or_default();
+            fields.push(format!(
+                "\"normalTexture\":{}",
+                texture_info(r, &scale, &mut extensions.texture_transform)
+            ));
+        }
+        if values.emissive != [0.0; 3] {
+            fields.push(format!(
+                "\"emissiveFactor\":{}",
+                num_array(&values.emissive)
+            ));
+        }
+        if let Some(strength) = values.emissive_strength {
+            extensions.emissive_strength = true;
+            fields.push(format!(
+                "\"extensions\":{{\"{EMISSIVE_STRENGTH}\":{{\"emissiveStrength\":{}}}}}",
+                num(strength)
+            ));
+        }
+        if values.blend {
+            fields.push("\"alphaMode\":\"BLEND\"".to_owned());
+        }
+        material_json.push(format!("{{{}}}", fields.join(",")));
+    }
+    if !adjusted.is_empty() {
+        warnings.push(format!(
+            "materials with values outside [0, 1] (clamped) or not finite (replaced by the \
+             default): {}",
+            name_list(&adjusted)
+        ));
+    }
+    material_json
+}
+
+/// The whole document.
+fn document_json(
+    meshes: &[Mesh<'_>],
+    material_table: &MaterialTable<'_>,
+    material_json: &[String],
+    table: &ImageTable<'_>,
+    written: &Written,
+    extensions: &Extensions,
+) -> String {
+    let uses_webp = table
+        .images
+        .iter()
+        .any(|i| matches!(i.embedded, Some((_, ImageFormat::Webp))));
+    let mut extensions_used = Vec::new();
+    if extensions.emissive_strength {
+        extensions_used.push(EMISSIVE_STRENGTH);
+    }
+    if extensions.texture_transform {
+        extensions_used.push(TEXTURE_TRANSFORM);
+    }
+    if uses_webp {
+        extensions_used.push(TEXTURE_WEBP);
+    }
+    let quoted = |names: &[&str]| {
+        let items: Vec<String> = names.iter().map(|n| escape_str(n)).collect();
+        format!("[{}]", items.join(","))
+    };
+
+    let mut json = String::new();
+    json += &format!(
+        "{{\"asset\":{{\"version\":\"2.0\",\"generator\":{}}}",
+        escape_str(&format!("tspace {}", env!("CARGO_PKG_VERSION")))
+    );
+    if !extensions_used.is_empty() {
+        json += &format!(",\"extensionsUsed\":{}", quoted(&extensions_used));
+    }
+    if uses_webp {
+        json += &format!(",\"extensionsRequired\":{}", quoted(&[TEXTURE_WEBP]));
+    }
+    let nodes: Vec<String> = (0..meshes.len()).map(|i| i.to_string()).collect();
+    json += &format!(
+        ",\"scene\":0,\"scenes\":[{{\"nodes\":[{}]}}]",
+        nodes.join(",")
+    );
+
+    let name_field = |name: Option<&str>| {
+        name.map(|n| format!("\"name\":{},", escape_str(n)))
+            .unwrap_or_default()
+    };
+    let node_json: Vec<String> = meshes
+        .iter()
+        .enumerate()
+        .map(|(i, m)| format!("{{{}\"mesh\":{i}}}", name_field(m.name)))
+        .collect();
+    json += &format!(",\"nodes\":[{}]", node_json.join(","));
+
+    let mut mesh_json = Vec::with_capacity(meshes.len());
+    for ((mesh, accessors_of), slots) in meshes
+        .iter()
+        .zip(&written.primitives)
+        .zip(&material_table.per_primitive)
+    {
+        let primitives: Vec<String> = accessors_of
+            .iter()
+            .zip(slots)
+            .map(
+                |(
+                    PrimitiveAccessors {
+                        attributes,
+                        indices,
+                    },
+                    material,
+                )| {
+                    let attributes: Vec<String> = attributes
+                        .iter()
+                        .map(|(name, accessor)| format!("\"{name}\":{accessor}"))
+                        .collect();
+                    let material = material
+                        .map(|m| format!(",\"material\":{m}"))
+                        .unwrap_or_default();
+                    let attributes = attributes.join(",");
+                    format!(
+                        "{{\"attributes\":{{{attributes}}},\"indices\":{indices}{material},\
+                     \"mode\":{TRIANGLES}}}"
+                    )
+                },
+            )
+            .collect();
+        debug_assert_eq!(primitives.len(), mesh.primitives.len());
+        mesh_json.push(format!(
+            "{{{}\"primitives\":[{}]}}",
+            name_field(mesh.name),
+            primitives.join(",")
+        ));
+    }
+    json += &format!(",\"meshes\":[{}]", mesh_json.join(","));
+
+    if !material_json.is_empty() {
+        json += &format!(",\"materials\":[{}]", material_json.join(","));
+    }
+    if !table.images.is_empty() {
+        let textures: Vec<String> = table
+            .images
+            .iter()
+            .enumerate()
+            .map(|(i, image)| match image.embedded {
+                Some((_, ImageFormat::Webp)) => format!(
+                    "{{\"sampler\":0,\"extensions\":{{\"{TEXTURE_WEBP}\":{{\"source\":{i}}}}}}}"
+                ),
+                _ => format!("{{\"sampler\":0,\"source\":{i}}}"),
+            })
+            .collect();
+        json += &format!(",\"textures\":[{}]", textures.join(","));
+        json += &format!(",\"samplers\":[{{\"wrapS\":{REPEAT},\"wrapT\":{REPEAT}}}]");
+        let image_json: Vec<String> = table
+            .images
+            .iter()
+            .zip(&written.image_views)
+            .map(|(image, view)| match (image.embedded, view) {
+                (Some((_, format)), Some(view)) => format!(
+                    "{{\"name\":{},\"bufferView\":{view},\"mimeType\":\"{}\"}}",
+                    escape_str(&image.name),
+                    format.mime()
+                ),
+                _ => format!(
+                    "{{\"name\":{},\"uri\":{}}}",
+                    escape_str(&image.name),
+                    escape_str(&percent_encode_path(&image.path))
+                ),
+            })
+            .collect();
+        json += &format!(",\"images\":[{}]", image_json.join(","));
+    }
+
+    let accessor_json: Vec<String> = written
+        .accessors
+        .iter()
+        .map(|a| {
+            let bounds = a
+                .bounds
+                .map(|(min, max)| {
+                    format!(",\"min\":{},\"max\":{}", num_array(&min), num_array(&max))
+                })
+                .unwrap_or_default();
+            format!(
+                "{{\"bufferView\":{},\"componentType\":{},\"count\":{},\"type\":\"{}\"{bounds}}}",
+                a.view, a.component_type, a.count, a.kind
+            )
+        })
+        .collect();
+    json += &format!(",\"accessors\":[{}]", accessor_json.join(","));
+    let view_json: Vec<String> = written
+        .bin
+        .views
+        .iter()
+        .map(|v| {
+            let offset = if v.offset > 0 {
+                format!(",\"byteOffset\":{}", v.offset)
+            } else {
+                String::new()
+            };
+            let target = v
+                .target
+                .map(|t| format!(",\"target\":{t}"))
+                .unwrap_or_default();
+            format!(
+                "{{\"buffer\":0{offset},\"byteLength\":{}{target}}}",
+                v.length
+            )
+        })
+        .collect();
+    json += &format!(",\"bufferViews\":[{}]", view_json.join(","));
+    json += &format!(
+        ",\"buffers\":[{{\"byteLength\":{}}}]}}",
+        written.bin.bytes.len()
+    );
+    json
+}
+
+/// Converts a parsed OBJ (and its MTL, if any) to a glTF document; see the module
+/// documentation. `images` supplies texture files by name; nothing is read from disk.
+pub fn obj_to_gltf(
+    obj: &Obj,
+    mtl: Option<&Mtl>,
+    images: &PartSet<'_>,
+    limits: &ConvertLimits,
+) -> Result<Converted, ConvertError> {
+    let mut warnings = Vec::new();
+    let (meshes, dropped) = plan_meshes(obj)?;
+    dropped.warn(&mut warnings);
+    let material_table = plan_materials(&meshes, mtl, &mut warnings);
+    let (table, textures) = plan_textures(&material_table.materials, images, &mut warnings);
+    let mut stats = ConversionStats {
+        meshes: meshes.len(),
+        materials: material_table.materials.len(),
+        ..ConversionStats::default()
+    };
+    let written = write_buffer(obj, &meshes, &table, limits, &mut warnings, &mut stats)?;
+    let mut extensions = Extensions::default();
+    let material_json = materials_json(
+        &material_table.materials,
+        &textures,
+        &mut extensions,
+        &mut warnings,
+    );
+    let json = document_json(
+        &meshes,
+        &material_table,
+        &material_json,
+        &table,
+        &written,
+        &extensions,
+    );
+    Ok(Converted {
+        json,
+        bin: written.bin.bytes,
+        warnings,
+        stats,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::gltf::glb;
+    use crate::scene::gltf::json::{Document, Node};
+    use crate::scene::obj::{FaceGroup, Limits, parse_mtl, parse_obj};
+    use proptest::prelude::*;
+    use std::collections::HashSet;
+
+    const PNG: &[u8] = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR not really a png";
+    const JPEG: &[u8] = b"\xFF\xD8\xFF\xE0\0\x10JFIF\0 not really a jpeg";
+    const WEBP: &[u8] = b"RIFF\x1a\0\0\0WEBPVP8L not really a webp";
+
+    fn obj(text: &str) -> Obj {
+        parse_obj(text.as_bytes(), &Limits::default()).unwrap()
+    }
+
+    fn convert_with(
+        obj_text: &str,
+        mtl_text: Option<&str>,
+        parts: &[(&str, &'static [u8])],
+    ) -> Converted {
+        let obj = obj(obj_text);
+        let mtl = mtl_text.map(|m| parse_mtl(m.as_bytes()).unwrap());
+        let mut set = PartSet::new();
+        for &(name, bytes) in parts {
+            set.insert(name, bytes).unwrap();
+        }
+        obj_to_gltf(&obj, mtl.as_ref(), &set, &ConvertLimits::default()).unwrap()
+    }
+
+    fn convert(obj_text: &str) -> Converted {
+        convert_with(obj_text, None, &[])
+    }
+
+    /// The converted document read back by the `gltf` crate, from a GLB made of it.
+    fn read(c: &Converted) -> gltf::Gltf {
+        let glb = glb::write(c.json.as_bytes(), Some(&c.bin), &[]).unwrap();
+        gltf::Gltf::from_slice(&glb).unwrap()
+    }
+
+    fn with_json<T>(c: &Converted, f: impl FnOnce(&Node) -> T) -> T {
+        let doc = Document::parse(c.json.as_bytes()).unwrap();
+        f(doc.root())
+    }
+
+    /// The `name` of each element of the top-level array `key` (the `gltf` crate is built
+    /// without its `names` feature).
+    fn names(c: &Converted, key: &str) -> Vec<Option<String>> {
+        with_json(c, |root| {
+            root.get(key)
+                .map_or(&[][..], |a| a.as_array().unwrap())
+                .iter()
+                .map(|e| e.get("name").map(|n| n.as_str().unwrap().to_owned()))
+                .collect()
+        })
+    }
+
+    fn some(names: &[&str]) -> Vec<Option<String>> {
+        names.iter().map(|n| Some((*n).to_owned())).collect()
+    }
+
+    fn f32s(node: &Node) -> Vec<f32> {
+        node.as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_f64().unwrap() as f32)
+            .collect()
+    }
+
+    #[derive(Debug)]
+    struct Prim {
+        positions: Vec<[f32; 3]>,
+        normals: Option<Vec<[f32; 3]>>,
+        uvs: Option<Vec<[f32; 2]>>,
+        colors: Option<Vec<[f32; 3]>>,
+        indices: Vec<u32>,
+        index_type: gltf::accessor::DataType,
+        material: Option<usize>,
+    }
+
+    fn primitives(doc: &gltf::Gltf) -> Vec<Vec<Prim>> {
+        let blob = doc.blob.as_deref();
+        doc.meshes()
+            .map(|mesh| {
+                mesh.primitives()
+                    .map(|p| {
+                        assert_eq!(p.mode(), gltf::mesh::Mode::Triangles);
+                        let r = p.reader(|b| (b.index() == 0).then_some(blob).flatten());
+                        Prim {
+                            positions: r.read_positions().unwrap().collect(),
+                            normals: r.read_normals().map(Iterator::collect),
+                            uvs: r.read_tex_coords(0).map(|t| t.into_f32().collect()),
+                            colors: r.read_colors(0).map(|c| c.into_rgb_f32().collect()),
+                            indices: r.read_indices().unwrap().into_u32().collect(),
+                            index_type: p.indices().unwrap().data_type(),
+                            material: p.material().index(),
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Triangles as comparable bit patterns: position, uv, normal of each corner.
+    type Key = Vec<(Vec<u32>, Option<Vec<u32>>, Option<Vec<u32>>)>;
+
+    fn bits<const N: usize>(v: [f32; N]) -> Vec<u32> {
+        v.iter().map(|c| c.to_bits()).collect()
+    }
+
+    fn unit(n: [f32; 3]) -> [f32; 3] {
+        let v = n.map(f64::from);
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if l > 0.0 && l.is_finite() {
+            v.map(|c| (c / l) as f32)
+        } else {
+            n
+        }
+    }
+
+    /// The corners as the conversion should keep them: an attribute survives only when every
+    /// corner has it, finite (and for normals, of non-zero length).
+    fn kept(obj: &Obj, t: &[Corner; 3]) -> [Corner; 3] {
+        let uv_ok = t.iter().all(|c| {
+            c.uv.is_some_and(|i| obj.uvs[i as usize].iter().all(|v| v.is_finite()))
+        });
+        let normal_ok = t.iter().all(|c| {
+            c.normal.is_some_and(|i| {
+                let n = obj.normals[i as usize];
+                let l = n.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>();
+                l.is_finite() && l > 0.0
+            })
+        });
+        t.map(|c| Corner {
+            position: c.position,
+            uv: c.uv.filter(|_| uv_ok),
+            normal: c.normal.filter(|_| normal_ok),
+        })
+    }
+
+    /// Every triangle of the OBJ, as the conversion should write it (V flipped, unit normals).
+    fn obj_triangles(obj: &Obj) -> Vec<Key> {
+        let mut out: Vec<Key> = obj
+            .groups
+            .iter()
+            .flat_map(|g| &g.triangles)
+            .map(|t| {
+                kept(obj, t)
+                    .iter()
+                    .map(|c| {
+                        (
+                            bits(obj.positions[c.position as usize]),
+                            c.uv.map(|i| {
+                                let [u, v] = obj.uvs[i as usize];
+                                bits([u, 1.0 - v])
+                            }),
+                            c.normal.map(|i| bits(unit(obj.normals[i as usize]))),
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        out.sort();
+        out
+    }
+
+    fn gltf_triangles(prims: &[Vec<Prim>]) -> Vec<Key> {
+        let mut out: Vec<Key> = Vec::new();
+        for p in prims.iter().flatten() {
+            for t in p.indices.chunks(3) {
+                out.push(
+                    t.iter()
+                        .map(|&i| {
+                            let i = i as usize;
+                            (
+                                bits(p.positions[i]),
+                                p.uvs.as_ref().map(|u| bits(u[i])),
+                                p.normals.as_ref().map(|n| bits(n[i])),
+                            )
+                        })
+                        .collect(),
+                );
+            }
+        }
+        out.sort();
+        out
+    }
+
+    /// The glTF holds exactly the OBJ's triangles, every primitive has as many vertices as it
+    /// has distinct corners, and the POSITION bounds are exact.
+    fn assert_faithful(obj: &Obj, c: &Converted) -> Vec<Vec<Prim>> {
+        let doc = read(c);
+        let prims = primitives(&doc);
+        assert_eq!(gltf_triangles(&prims), obj_triangles(obj));
+        for (mesh, gmesh) in prims.iter().zip(doc.meshes()) {
+            for (p, gp) in mesh.iter().zip(gmesh.primitives()) {
+                assert!(p.indices.iter().all(|&i| (i as usize) < p.positions.len()));
+                let used: HashSet<u32> = p.indices.iter().copied().collect();
+                assert_eq!(used.len(), p.positions.len(), "unused vertices");
+                let bounds = gp.bounding_box();
+                for k in 0..3 {
+                    let finite = p.positions.iter().map(|v| v[k]).filter(|v| v.is_finite());
+                    let min = finite.clone().fold(f32::INFINITY, f32::min);
+                    let max = finite.fold(f32::NEG_INFINITY, f32::max);
+                    assert_eq!((bounds.min[k], bounds.max[k]), (min, max));
+                }
+                let expected = if p.positions.len() <= 65535 {
+                    gltf::accessor::DataType::U16
+                } else {
+                    gltf::accessor::DataType::U32
+                };
+                assert_eq!(p.index_type, expected);
+            }
+        }
+        let total: usize = prims.iter().flatten().map(|p| p.positions.len()).sum();
+        assert_eq!(c.stats.vertices, total);
+        assert_eq!(c.stats.triangles, obj.triangle_count());
+        assert_eq!(c.bin.len() % 4, 0);
+        prims
+    }
+
+    const QUAD: &str = "v 0 0 0\nv 2 0 0\nv 2 1 0\nv 0 1 -1\nvt 0 0\nvt 1 0\nvt 1 0.25\nvt 0 1\n\
+                        vn 0 0 2\n";
+
+    #[test]
+    fn shared_vertices_stay_shared_uvs_flip_and_normals_become_unit() {
+        let text = format!("{QUAD}f 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n");
+        let c = convert(&text);
+        let prims = assert_faithful(&obj(&text), &c);
+        assert_eq!(prims.len(), 1);
+        let p = &prims[0][0];
+        assert_eq!(p.positions.len(), 4);
+        assert_eq!(p.indices, [0, 1, 2, 0, 2, 3]);
+        assert_eq!(p.index_type, gltf::accessor::DataType::U16);
+        assert_eq!(
+            p.uvs.as_deref().unwrap(),
+            [[0.0, 1.0], [1.0, 1.0], [1.0, 0.75], [0.0, 0.0]]
+        );
+        assert_eq!(p.normals.as_deref().unwrap(), [[0.0, 0.0, 1.0]; 4]);
+        assert!(p.colors.is_none() && p.material.is_none());
+        with_json(&c, |root| {
+            let position = root.get("accessors").unwrap().index(0).unwrap();
+            assert_eq!(f32s(position.get("min").unwrap()), [0.0, 0.0, -1.0]);
+            assert_eq!(f32s(position.get("max").unwrap()), [2.0, 1.0, 0.0]);
+            assert_eq!(root.get("scene").unwrap().as_u64(), Some(0));
+            let asset = root.get("asset").unwrap();
+            assert_eq!(asset.get("version").unwrap().as_str(), Some("2.0"));
+            let generator = format!("tspace {}", env!("CARGO_PKG_VERSION"));
+            assert_eq!(asset.get("generator").unwrap().as_str(), Some(&*generator));
+            let buffers = root.get("buffers").unwrap().as_array().unwrap();
+            assert_eq!(buffers.len(), 1);
+            assert!(buffers[0].get("uri").is_none());
+            assert_eq!(
+                buffers[0].get("byteLength").unwrap().as_u64(),
+                Some(c.bin.len() as u64)
+            );
+            for key in [
+                "materials",
+                "textures",
+                "images",
+                "samplers",
+                "extensionsUsed",
+            ] {
+                assert!(root.get(key).is_none(), "{key}");
+            }
+            for view in root.get("bufferViews").unwrap().as_array().unwrap() {
+                let offset = view.get("byteOffset").map_or(0, |o| o.as_u64().unwrap());
+                assert_eq!(offset % 4, 0);
+                assert!(view.get("byteStride").is_none());
+            }
+        });
+        assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+        assert_eq!(
+            c.stats,
+            ConversionStats {
+                meshes: 1,
+                primitives: 1,
+                vertices: 4,
+                triangles: 2,
+                ..ConversionStats::default()
+            }
+        );
+    }
+
+    #[test]
+    fn mixed_vt_vn_faces_give_one_primitive_per_signature_merged_in_file_order() {
+        let text = format!(
+            "{QUAD}f 1 2 3\nf 1/1 2/2 3/3\nf 1//1 2//1 3//1\nf 1/1/1 2/2/1 3/3/1\nf 1 3 4\n\
+             f 1/1/1 3/3/1 4/4/1\nf 1/1 2 3/3\n"
+        );
+        let c = convert(&text);
+        let prims = assert_faithful(&obj(&text), &c);
+        let p = &prims[0];
+        assert_eq!(p.len(), 4);
+        let shape: Vec<(bool, bool, usize)> = p
+            .iter()
+            .map(|p| (p.uvs.is_some(), p.normals.is_some(), p.indices.len() / 3))
+            .collect();
+        // The partial face (`f 1/1 2 3/3`) lost its UVs in the reader and joined the bare ones.
+        assert_eq!(
+            shape,
+            [
+                (false, false, 3),
+                (true, false, 1),
+                (false, true, 1),
+                (true, true, 2)
+            ]
+        );
+        // The bare primitive shares positions across its three faces.
+        assert_eq!(p[0].positions.len(), 4);
+        assert_eq!(p[0].indices, [0, 1, 2, 0, 2, 3, 0, 1, 2]);
+    }
+
+    #[test]
+    fn one_node_and_mesh_per_object_in_file_order() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no first\nf 1 2 3\ng a\nf 3 2 1\n\
+                    o second thing\nf 1 2 3\no first\nf 1 3 2\nl 1 2\n";
+        let c = convert(text);
+        assert_faithful(&obj(text), &c);
+        let doc = read(&c);
+        let expected = [None, Some("first"), Some("second thing"), Some("first")]
+            .map(|n| n.map(str::to_owned));
+        assert_eq!(names(&c, "nodes"), expected);
+        assert_eq!(names(&c, "meshes"), expected);
+        for (i, node) in doc.nodes().enumerate() {
+            assert_eq!(node.mesh().unwrap().index(), i);
+        }
+        let scene = doc.default_scene().unwrap();
+        assert_eq!(scene.nodes().count(), 4);
+        let prims = primitives(&doc);
+        // `g a` does not split the object: one primitive of two triangles.
+        assert_eq!(prims[1].len(), 1);
+        assert_eq!(prims[1][0].indices.len(), 6);
+        assert_eq!(c.stats.meshes, 4);
+    }
+
+    #[test]
+    fn vertex_colours_become_color_0() {
+        let text = "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 2\nv 1 1 0\no b\nf 1 2 3\nf 2 4 3\n";
+        let c = convert(text);
+        let prims = assert_faithful(&obj(text), &c);
+        let p = &prims[0][0];
+        assert_eq!(
+            p.colors.as_deref().unwrap(),
+            [
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [1.0, 1.0, 1.0]
+            ]
+        );
+        assert_eq!(
+            c.warnings,
+            ["1 vertex colours outside [0, 1] were clamped (a NaN component became 1)"]
+        );
+    }
+
+    const MTL: &str = "newmtl plain\nKd 0.5 0.25 1\nNs 100\n\
+        newmtl glass\nKd 0.1 0.2 0.3\nd 0.25\nPr 0.4\nPm 0.75\nKe 2 1 0.5\n\
+        map_Kd -o 0.25 0.5 -s 2 3 textures/my diffuse.png\nnorm -bm 0.5 ..\\normals\\n.png\n\
+        map_d alpha.png\n\
+        newmtl dull\nKs 0 0 0\nNs 500\nKd 2 -1 nan\nKe 0.5 0 0\nmap_Bump -bm 2 bump.jpg\n\
+        newmtl unused\nmap_Kd nothere.png\n";
+
+    #[test]
+    fn materials_map_to_pbr_with_textures_and_transforms() {
+        let text = format!(
+            "{QUAD}mtllib m.mtl\nusemtl glass\nf 1/1/1 2/2/1 3/3/1\nusemtl plain\nf 1/1 3/3 4/4\n\
+             usemtl dull\nf 1/1/1 3/3/1 4/4/1\nusemtl glass\nf 1/1/1 3/3/1 4/4/1\n"
+        );
+        let c = convert_with(&text, Some(MTL), &[("my diffuse.png", PNG)]);
+        let prims = assert_faithful(&obj(&text), &c);
+        let materials: Vec<Option<usize>> = prims[0].iter().map(|p| p.material).collect();
+        assert_eq!(materials, [Some(0), Some(1), Some(2)]);
+        let doc = read(&c);
+        assert_eq!(names(&c, "materials"), some(&["glass", "plain", "dull"]));
+
+        let glass = doc.materials().next().unwrap();
+        let pbr = glass.pbr_metallic_roughness();
+        assert_eq!(pbr.base_color_factor(), [0.1, 0.2, 0.3, 0.25]);
+        assert_eq!(glass.alpha_mode(), gltf::material::AlphaMode::Blend);
+        assert_eq!((pbr.metallic_factor(), pbr.roughness_factor()), (0.75, 0.4));
+        assert_eq!(glass.emissive_factor(), [1.0, 0.5, 0.25]);
+        let base = pbr.base_color_texture().unwrap();
+        let normal = glass.normal_texture().unwrap();
+        assert_eq!(normal.scale(), 0.5);
+        let source = |t: gltf::Texture<'_>| match t.source().source() {
+            gltf::image::Source::View { view, mime_type } => {
+                let start = view.offset();
+                let bytes = &doc.blob.as_deref().unwrap()[start..start + view.length()];
+                format!("embedded {mime_type} {}", bytes == PNG)
+            }
+            gltf::image::Source::Uri { uri, .. } => format!("uri {uri}"),
+        };
+        assert_eq!(source(base.texture()), "embedded image/png true");
+        assert_eq!(source(normal.texture()), "uri n.png");
+
+        let plain = doc.materials().nth(1).unwrap();
+        let pbr = plain.pbr_metallic_roughness();
+        assert_eq!(pbr.base_color_factor(), [0.5, 0.25, 1.0, 1.0]);
+        assert_eq!(plain.alpha_mode(), gltf::material::AlphaMode::Opaque);
+        assert_eq!(pbr.metallic_factor(), 0.0);
+        assert!((pbr.roughness_factor() - (2.0f32 / 102.0).powf(0.25)).abs() < 1e-6);
+        assert!(plain.normal_texture().is_none() && pbr.base_color_texture().is_none());
+
+        let dull = doc.materials().nth(2).unwrap();
+        let pbr = dull.pbr_metallic_roughness();
+        // Kd 2 -1 nan: clamped, clamped, replaced by the default.
+        assert_eq!(pbr.base_color_factor(), [1.0, 0.0, 1.0, 1.0]);
+        // Black Ks: no highlight, so fully rough whatever Ns says.
+        assert_eq!(pbr.roughness_factor(), 1.0);
+        assert_eq!(dull.emissive_factor(), [0.5, 0.0, 0.0]);
+        let bump = dull.normal_texture().unwrap();
+        assert_eq!(bump.scale(), 2.0);
+        assert_eq!(source(bump.texture()), "uri bump.jpg");
+
+        assert_eq!(doc.textures().count(), 3);
+        assert_eq!(doc.images().count(), 3);
+        assert_eq!(doc.samplers().count(), 1);
+        let sampler = doc.samplers().next().unwrap();
+        assert_eq!(sampler.wrap_s(), gltf::texture::WrappingMode::Repeat);
+        assert_eq!(sampler.wrap_t(), gltf::texture::WrappingMode::Repeat);
+        assert_eq!((c.stats.images_embedded, c.stats.images_referenced), (1, 2));
+        assert_eq!(c.stats.materials, 3);
+
+        with_json(&c, |root| {
+            let used: Vec<&str> = root
+                .get("extensionsUsed")
+                .unwrap()
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|n| n.as_str().unwrap())
+                .collect();
+            assert_eq!(used, [EMISSIVE_STRENGTH, TEXTURE_TRANSFORM]);
+            assert!(root.get("extensionsRequired").is_none());
+            let glass = root.get("materials").unwrap().index(0).unwrap();
+            let strength = glass
+                .get("extensions")
+                .unwrap()
+                .get(EMISSIVE_STRENGTH)
+                .unwrap();
+            assert_eq!(
+                strength.get("emissiveStrength").unwrap().as_f64(),
+                Some(2.0)
+            );
+            let transform = glass
+                .get("pbrMetallicRoughness")
+                .unwrap()
+                .get("baseColorTexture")
+                .unwrap()
+                .get("extensions")
+                .unwrap()
+                .get(TEXTURE_TRANSFORM)
+                .unwrap();
+            // Offset (o_u, 1 - o_v - s_v) = (0.25, 1 - 0.5 - 3).
+            assert_eq!(f32s(transform.get("offset").unwrap()), [0.25, -2.5]);
+            assert_eq!(f32s(transform.get("scale").unwrap()), [2.0, 3.0]);
+            assert!(
+                glass
+                    .get("normalTexture")
+                    .unwrap()
+                    .get("extensions")
+                    .is_none()
+            );
+            let images = root.get("images").unwrap().as_array().unwrap();
+            assert_eq!(
+                images[0].get("name").unwrap().as_str(),
+                Some("my diffuse.png")
+            );
+        });
+
+        let joined = c.warnings.join("\n");
+        for expected in [
+            "\"..\\\\normals\\\\n.png\"",
+            "not supplied",
+            "\"n.png\", \"bump.jpg\"",
+            "map_d \"alpha.png\" of material \"glass\"",
+            "\"dull\"",
+        ] {
+            assert!(joined.contains(expected), "{expected} not in {joined}");
+        }
+        assert!(
+            !joined.contains("nothere"),
+            "unused material's texture: {joined}"
+        );
+    }
+
+    #[test]
+    fn texture_transform_matches_obj_sampling_after_the_v_flip() {
+        let cases = [
+            (Some([0.25, 0.5, 0.0]), Some([2.0, 3.0, 1.0])),
+            (Some([-0.5, 0.125, 0.0]), None),
+            (None, Some([0.5, -2.0, 1.0])),
+            (Some([0.0, 0.0, 0.0]), Some([1.0, 1.0, 1.0])),
+        ];
+        for (offset, scale) in cases {
+            let t = Texture {
+                path: "t.png".into(),
+                bump_multiplier: None,
+                offset,
+                scale,
+            };
+            let transform = texture_transform(&t).unwrap();
+            let (o, s) = (offset.unwrap_or([0.0; 3]), scale.unwrap_or([1.0; 3]));
+            for (u, v) in [(0.0, 0.0), (1.0, 1.0), (0.3, 0.7), (-1.5, 2.25)] {
+                // OBJ: the point `o + s * uv` of an image whose V axis points up; as a position
+                // in the image from its top left, that is (x, 1 - y).
+                let obj = [o[0] + s[0] * u, 1.0 - (o[1] + s[1] * v)];
+                // glTF: v' = 1 - v, then offset + scale * uv' (rotation 0).
+                let Transform {
+                    offset: go,
+                    scale: gs,
+                } = transform.unwrap_or(Transform {
+                    offset: [0.0; 2],
+                    scale: [1.0; 2],
+                });
+                let gltf = [go[0] + gs[0] * u, go[1] + gs[1] * (1.0 - v)];
+                for k in 0..2 {
+                    assert!(
+                        (obj[k] - gltf[k]).abs() < 1e-5,
+                        "{offset:?} {scale:?} {u} {v}"
+                    );
+                }
+            }
+        }
+        assert_eq!(
+            texture_transform(&Texture {
+                scale: Some([f32::NAN, 1.0, 1.0]),
+                ..Texture::default()
+            }),
+            Err(())
+        );
+    }
+
+    #[test]
+    fn roughness_from_shininess_is_the_fourth_root_of_the_blinn_phong_alpha() {
+        assert_eq!(roughness_from_shininess(0.0), 1.0);
+        assert_eq!(roughness_from_shininess(-5.0), 1.0);
+        for ns in [1.0f32, 10.0, 96.5, 400.0, 1000.0] {
+            let alpha = (2.0 / (f64::from(ns) + 2.0)).sqrt();
+            let r = f64::from(roughness_from_shininess(ns));
+            assert!((r * r - alpha).abs() < 1e-6);
+        }
+        assert!((roughness_from_shininess(1000.0) - 0.2114).abs() < 1e-3);
+    }
+
+    #[test]
+    fn missing_and_absent_materials() {
+        let text =
+            format!("{QUAD}usemtl nowhere\nf 1 2 3\nusemtl plain\nf 1 3 4\nusemtl\nf 2 3 4\n");
+        let c = convert_with(&text, Some(MTL), &[]);
+        let doc = read(&c);
+        let prims = primitives(&doc);
+        let materials: Vec<Option<usize>> = prims[0].iter().map(|p| p.material).collect();
+        assert_eq!(materials, [Some(0), Some(1), None]);
+        let nowhere = doc.materials().next().unwrap();
+        assert_eq!(names(&c, "materials"), some(&["nowhere", "plain"]));
+        assert_eq!(nowhere.pbr_metallic_roughness().metallic_factor(), 0.0);
+        assert_eq!(
+            nowhere.pbr_metallic_roughness().base_color_factor(),
+            [1.0; 4]
+        );
+        assert!(
+            c.warnings
+                .iter()
+                .any(|w| w.contains("not in the MTL") && w.contains("\"nowhere\""))
+        );
+
+        // Without an MTL: no materials at all, and a warning.
+        let c = convert(&text);
+        with_json(&c, |root| assert!(root.get("materials").is_none()));
+        assert!(
+            primitives(&read(&c))[0]
+                .iter()
+                .all(|p| p.material.is_none())
+        );
+        // The three usemtl runs are three primitives even without materials.
+        assert_eq!(c.stats.primitives, 3);
+        assert!(c.warnings.iter().any(|w| w.contains("no MTL was given")));
+    }
+
+    #[test]
+    fn textured_material_on_faces_without_uvs_gets_an_untextured_copy() {
+        let text = format!("{QUAD}usemtl glass\nf 1/1/1 2/2/1 3/3/1\nf 1//1 3//1 4//1\n");
+        let c = convert_with(&text, Some(MTL), &[]);
+        let doc = read(&c);
+        let prims = primitives(&doc);
+        assert_eq!(prims[0][0].material, Some(0));
+        assert_eq!(prims[0][1].material, Some(1));
+        let copy = doc.materials().nth(1).unwrap();
+        assert_eq!(names(&c, "materials"), some(&["glass", "glass"]));
+        assert!(copy.normal_texture().is_none());
+        assert!(copy.pbr_metallic_roughness().base_color_texture().is_none());
+        assert_eq!(
+            copy.pbr_metallic_roughness().base_color_factor(),
+            [0.1, 0.2, 0.3, 0.25]
+        );
+        assert!(
+            c.warnings
+                .iter()
+                .any(|w| w.contains("got a copy without textures"))
+        );
+        // Only the UV-less use: no textures or images at all.
+        let text = format!("{QUAD}usemtl glass\nf 1 3 4\n");
+        let c = convert_with(&text, Some(MTL), &[]);
+        with_json(&c, |root| {
+            assert!(root.get("textures").is_none() && root.get("images").is_none());
+            assert!(
+                root.get("extensionsUsed")
+                    .unwrap()
+                    .as_array()
+                    .unwrap()
+                    .len()
+                    == 1
+            );
+        });
+    }
+
+    #[test]
+    fn images_embedded_when_supplied_referenced_when_not() {
+        let mtl = "newmtl a\nmap_Kd .\\tex\\a.jpg\nnewmtl b\nmap_Kd C:\\Users\\me\\b 1%.png\n\
+                   newmtl c\nmap_Kd /abs/c.webp\nnewmtl d\nmap_Kd tex/a.jpg\nnorm d.tga\n\
+                   newmtl e\nmap_Kd sub/dir/é e#1.png\nnewmtl f\nmap_Kd textures/\n";
+        let mut text = QUAD.to_owned();
+        for m in ["a", "b", "c", "d", "e", "f"] {
+            text += &format!("usemtl {m}\nf 1/1 2/2 3/3\n");
+        }
+        let c = convert_with(
+            &text,
+            Some(mtl),
+            &[("a.jpg", JPEG), ("c.webp", WEBP), ("d.tga", b"TGA?")],
+        );
+        with_json(&c, |root| {
+            let images = root.get("images").unwrap().as_array().unwrap();
+            let summary: Vec<String> = images
+                .iter()
+                .map(|i| {
+                    let name = i.get("name").unwrap().as_str().unwrap();
+                    match i.get("uri") {
+                        Some(uri) => format!("{name} uri {}", uri.as_str().unwrap()),
+                        None => format!(
+                            "{name} view {} {}",
+                            i.get("bufferView").unwrap().as_u64().unwrap(),
+                            i.get("mimeType").unwrap().as_str().unwrap()
+                        ),
+                    }
+                })
+                .collect();
+            let views = root.get("bufferViews").unwrap().as_array().unwrap();
+            let last = views.len() as u64;
+            assert_eq!(
+                summary,
+                [
+                    format!("a.jpg view {} image/jpeg", last - 2),
+                    "b 1%.png uri b%201%25.png".to_owned(),
+                    format!("c.webp view {} image/webp", last - 1),
+                    "d.tga uri d.tga".to_owned(),
+                    "é e#1.png uri sub/dir/%C3%A9%20e%231.png".to_owned(),
+                ]
+            );
+            // `.\tex\a.jpg` and `tex/a.jpg` are one image.
+            let textures = root.get("textures").unwrap().as_array().unwrap();
+            assert_eq!(textures.len(), 5);
+            let webp = &textures[2];
+            assert!(webp.get("source").is_none());
+            let ext = webp.get("extensions").unwrap().get(TEXTURE_WEBP).unwrap();
+            assert_eq!(ext.get("source").unwrap().as_u64(), Some(2));
+            for key in ["extensionsUsed", "extensionsRequired"] {
+                let list = root.get(key).unwrap().as_array().unwrap();
+                assert_eq!(list.len(), 1);
+                assert_eq!(list[0].as_str(), Some(TEXTURE_WEBP));
+            }
+            let materials = root.get("materials").unwrap().as_array().unwrap();
+            assert_eq!(materials.len(), 6);
+            assert!(
+                materials[5]
+                    .get("pbrMetallicRoughness")
+                    .unwrap()
+                    .get("baseColorTexture")
+                    .is_none()
+            );
+            for (view, bytes) in [(last - 2, JPEG), (last - 1, WEBP)] {
+                let v = views[view as usize].clone();
+                let offset = v.get("byteOffset").unwrap().as_u64().unwrap() as usize;
+                let length = v.get("byteLength").unwrap().as_u64().unwrap() as usize;
+                assert_eq!(offset % 4, 0);
+                assert!(v.get("target").is_none());
+                assert_eq!(&c.bin[offset..offset + length], bytes);
+            }
+        });
+        assert_eq!((c.stats.images_embedded, c.stats.images_referenced), (2, 3));
+        let joined = c.warnings.join("\n");
+        for expected in [
+            "kept as their file name only: \"C:\\\\Users\\\\me\\\\b 1%.png\", \"/abs/c.webp\"",
+            "not supplied, referenced by relative URI instead of embedded: \"b 1%.png\", \
+             \"sub/dir/é e#1.png\"",
+            "not PNG, JPEG or WebP, which glTF cannot embed; referenced by relative URI: \"d.tga\"",
+            "without a file name, ignored: \"textures/\"",
+        ] {
+            assert!(joined.contains(expected), "{expected} not in {joined}");
+        }
+    }
+
+    #[test]
+    fn index_width_switches_to_u32_past_65535_vertices() {
+        for vertices in [65535usize, 65536] {
+            let mut obj = Obj {
+                positions: (0..vertices)
+                    .map(|i| [i as f32, (i % 7) as f32, 0.0])
+                    .collect(),
+                ..Obj::default()
+            };
+            let mut triangles: Vec<[Corner; 3]> = (0..vertices / 3)
+                .map(|t| {
+                    [0, 1, 2].map(|k| Corner {
+                        position: (3 * t + k) as u32,
+                        uv: None,
+                        normal: None,
+                    })
+                })
+                .collect();
+            if vertices % 3 != 0 {
+                triangles.push([vertices - 1, 0, 1].map(|p| Corner {
+                    position: p as u32,
+                    uv: None,
+                    normal: None,
+                }));
+            }
+            obj.groups.push(FaceGroup {
+                smoothing: vec![0; triangles.len()],
+                triangles,
+                ..FaceGroup::default()
+            });
+            let c = obj_to_gltf(&obj, None, &PartSet::new(), &ConvertLimits::default()).unwrap();
+            let prims = assert_faithful(&obj, &c);
+            assert_eq!(prims[0][0].positions.len(), vertices);
+            assert_eq!(
+                *prims[0][0].indices.iter().max().unwrap() as usize,
+                vertices - 1
+            );
+        }
+    }
+
+    #[test]
+    fn unusable_normals_and_uvs_are_dropped_per_triangle_and_bad_positions_kept() {
+        let text = "v 0 0 0\nv 1 nan 0\nv 0 1 inf\nv 0 0 0\nv 1 1 1\nvt 0 nan\nvt 0.5 0.5\n\
+                    vn 0 0 0\nvn 0 3 4\nf 1/2/2 2/2/2 3/2/2\nf 1/1/2 4/2/2 5/2/2\n\
+                    f 1/2/1 4/2/2 5/2/2\nf 1 4 5\n";
+        let c = convert(text);
+        let prims = assert_faithful(&obj(text), &c);
+        let shape: Vec<(bool, bool)> = prims[0]
+            .iter()
+            .map(|p| (p.uvs.is_some(), p.normals.is_some()))
+            .collect();
+        assert_eq!(
+            shape,
+            [(true, true), (false, true), (true, false), (false, false)]
+        );
+        assert_eq!(
+            prims[0][0].normals.as_deref().unwrap(),
+            [[0.0, 0.6, 0.8]; 3]
+        );
+        assert!(prims[0][0].positions[1][1].is_nan());
+        assert_eq!(prims[0][0].positions[2][2], f32::INFINITY);
+        let doc = read(&c);
+        let bounds = doc
+            .meshes()
+            .next()
+            .unwrap()
+            .primitives()
+            .next()
+            .unwrap()
+            .bounding_box();
+        assert_eq!((bounds.min, bounds.max), ([0.0; 3], [1.0, 1.0, 0.0]));
+        assert_eq!(
+            c.warnings,
+            [
+                "1 triangles use a normal of zero length or not finite, which glTF does not \
+                 allow; they were written without normals (the tangent step generates them)",
+                "1 triangles use a texture coordinate that is NaN or infinite; they were written \
+                 without texture coordinates",
+                "2 vertices have a NaN or infinite position, kept as they are; POSITION min and \
+                 max cover the finite values only",
+            ]
+        );
+        // A primitive with no finite y at all has no bounds: refused.
+        let o = obj("v 0 nan 0\nv 1 inf 0\nv 0 -inf 1\nf 1 2 3\n");
+        let err = obj_to_gltf(&o, None, &PartSet::new(), &ConvertLimits::default()).unwrap_err();
+        assert_eq!(
+            err,
+            ConvertError::NoFinitePosition {
+                mesh: 0,
+                primitive: 0,
+                axis: 'y'
+            }
+        );
+        assert!(err.to_string().contains("every y coordinate"));
+    }
+
+    #[test]
+    fn errors_are_clear() {
+        let none = PartSet::new();
+        let limits = ConvertLimits::default();
+        for text in ["", "v 0 0 0\nv 1 0 0\nl 1 2\np 1\nf 1 2\n"] {
+            let err = obj_to_gltf(&obj(text), None, &none, &limits).unwrap_err();
+            assert_eq!(err, ConvertError::NoFaces);
+            assert!(err.to_string().contains("no faces"));
+        }
+        let mut bad = obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        bad.groups[0].triangles[0][1].normal = Some(5);
+        assert_eq!(
+            obj_to_gltf(&bad, None, &none, &limits).unwrap_err(),
+            ConvertError::IndexOutOfRange {
+                what: "normal",
+                index: 5,
+                count: 0
+            }
+        );
+        let mut bad = obj("v 0 0 0 1 1 1\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        bad.colors.as_mut().unwrap().truncate(1);
+        assert!(matches!(
+            obj_to_gltf(&bad, None, &none, &limits).unwrap_err(),
+            ConvertError::IndexOutOfRange {
+                what: "vertex colour",
+                ..
+            }
+        ));
+        let good = obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        // 3 positions (36 bytes) and 3 u16 indices (6, padded to 8).
+        let tight = ConvertLimits {
+            max_buffer_bytes: 44,
+        };
+        assert_eq!(
+            obj_to_gltf(&good, None, &none, &tight).unwrap().bin.len(),
+            44
+        );
+        let err = obj_to_gltf(
+            &good,
+            None,
+            &none,
+            &ConvertLimits {
+                max_buffer_bytes: 43,
+            },
+        )
+        .unwrap_err();
+        assert!(matches!(
+            err,
+            ConvertError::TooLarge {
+                value: 44,
+                limit: 43,
+                ..
+            }
+        ));
+        assert!(err.to_string().contains("44"));
+    }
+
+    #[test]
+    fn paths_and_uris() {
+        let clean = |p: &str| clean_path(p).map(|c| (c.path, c.file_name, c.reduced));
+        let s = |x: &str| x.to_owned();
+        assert_eq!(clean(".\\a.jpg"), Some((s("a.jpg"), s("a.jpg"), false)));
+        assert_eq!(
+            clean("x//./y/b.png"),
+            Some((s("x/y/b.png"), s("b.png"), false))
+        );
+        assert_eq!(clean("../b.png"), Some((s("b.png"), s("b.png"), true)));
+        assert_eq!(clean("x/../b.png"), Some((s("b.png"), s("b.png"), true)));
+        assert_eq!(clean("/b.png"), Some((s("b.png"), s("b.png"), true)));
+        assert_eq!(
+            clean("\\\\server\\share\\b.png"),
+            Some((s("b.png"), s("b.png"), true))
+        );
+        assert_eq!(clean("C:b.png"), Some((s("b.png"), s("b.png"), true)));
+        assert_eq!(
+            clean("http://h/x.png"),
+            Some((s("x.png"), s("x.png"), true))
+        );
+        for bad in ["", ".", "..", "a/", "a/..", "C:", "./"] {
+            assert!(clean(bad).is_none(), "{bad}");
+        }
+        assert_eq!(
+            percent_encode_path("a b/%20:?#~é.png"),
+            "a%20b/%2520%3A%3F%23~%C3%A9.png"
+        );
+    }
+
+    fn fixture(path: &str) -> Option<Vec<u8>> {
+        let full = format!("{}/fixtures/{path}", env!("CARGO_MANIFEST_DIR"));
+        let bytes = std::fs::read(&full).ok();
+        if bytes.is_none() {
+            eprintln!("skipping: {full} is absent");
+        }
+        bytes
+    }
+
+    /// For each (object, material, has uv, has normal), the distinct corner triples.
+    fn distinct_corners(obj: &Obj) -> usize {
+        type Key<'o> = (Option<&'o str>, Option<&'o str>, bool, bool, Corner);
+        let mut seen: HashSet<Key<'_>> = HashSet::new();
+        for g in &obj.groups {
+            for c in g.triangles.iter().flat_map(|t| kept(obj, t)) {
+                seen.insert((
+                    g.object.as_deref(),
+                    g.material.as_deref(),
+                    c.uv.is_some(),
+                    c.normal.is_some(),
+                    c,
+                ));
+            }
+        }
+        seen.len()
+    }
+
+    #[test]
+    fn spider_with_its_materials_and_one_supplied_texture() {
+        let (Some(obj_bytes), Some(mtl_bytes)) =
+            (fixture("spider/spider.obj"), fixture("spider/spider.mtl"))
+        else {
+            return;
+        };
+        let obj = parse_obj(&obj_bytes, &Limits::default()).unwrap();
+        let mtl = parse_mtl(&mtl_bytes).unwrap();
+        let mut parts = PartSet::new();
+        parts.insert("SpiderTex.jpg", JPEG).unwrap();
+        let c = obj_to_gltf(&obj, Some(&mtl), &parts, &ConvertLimits::default()).unwrap();
+        let prims = assert_faithful(&obj, &c);
+        assert_eq!(c.stats.vertices, distinct_corners(&obj));
+        assert_eq!(prims.len(), 1);
+        // 19 groups, 4 materials used, every face with UVs and normals, but one `vn 0 0 0`
+        // (used by 32 corners): the triangles using it form a fifth primitive, without normals.
+        let shape: Vec<(Option<usize>, bool, bool, usize)> = prims[0]
+            .iter()
+            .map(|p| {
+                (
+                    p.material,
+                    p.uvs.is_some(),
+                    p.normals.is_some(),
+                    p.indices.len() / 3,
+                )
+            })
+            .collect();
+        assert_eq!(
+            shape,
+            [
+                (Some(0), true, true, 80),
+                (Some(1), true, true, 260),
+                (Some(2), true, true, 900),
+                (Some(2), true, false, 52),
+                (Some(3), true, true, 76)
+            ]
+        );
+        let doc = read(&c);
+        assert_eq!(names(&c, "nodes"), [None]);
+        assert_eq!(
+            names(&c, "materials"),
+            some(&["HLeibTex", "Skin", "BeinTex", "Augentex"])
+        );
+        let images: Vec<String> = doc
+            .images()
+            .map(|i| match i.source() {
+                gltf::image::Source::View { mime_type, .. } => format!("embedded {mime_type}"),
+                gltf::image::Source::Uri { uri, .. } => uri.to_owned(),
+            })
+            .collect();
+        assert_eq!(
+            images,
+            [
+                "embedded image/jpeg",
+                "wal67ar_small.jpg",
+                "drkwood2.jpg",
+                "engineflare1.jpg"
+            ]
+        );
+        for m in doc.materials() {
+            let pbr = m.pbr_metallic_roughness();
+            assert!(pbr.base_color_texture().is_some());
+            // Ns 0 and a black Ks: fully rough, non-metallic.
+            assert_eq!((pbr.metallic_factor(), pbr.roughness_factor()), (0.0, 1.0));
+        }
+        assert_eq!(c.stats.images_embedded, 1);
+        assert_eq!(c.warnings.len(), 2, "{:?}", c.warnings);
+        assert!(c.warnings[0].contains("use a normal of zero length"));
+        assert!(c.warnings[1].contains("\"wal67ar_small.jpg\", \"drkwood2.jpg\""));
+    }
+
+    #[test]
+    fn concave_polygon_and_negative_indices() {
+        if let (Some(obj_bytes), Some(mtl_bytes)) = (
+            fixture("concave_polygon/concave_polygon.obj"),
+            fixture("concave_polygon/concave_polygon.mtl"),
+        ) {
+            let obj = parse_obj(&obj_bytes, &Limits::default()).unwrap();
+            let mtl = parse_mtl(&mtl_bytes).unwrap();
+            let c =
+                obj_to_gltf(&obj, Some(&mtl), &PartSet::new(), &ConvertLimits::default()).unwrap();
+            let prims = assert_faithful(&obj, &c);
+            assert_eq!(c.stats.vertices, distinct_corners(&obj));
+            let p = &prims[0][0];
+            assert_eq!((p.indices.len(), p.positions.len()), (192, 64));
+            assert!(p.uvs.is_none() && p.normals.is_some());
+            let doc = read(&c);
+            assert_eq!(names(&c, "nodes"), some(&["concave_test.obj"]));
+            assert_eq!(names(&c, "materials"), some(&["test"]));
+            let m = doc.materials().next().unwrap();
+            assert_eq!(
+                m.pbr_metallic_roughness().base_color_factor(),
+                [0.141176, 0.184314, 0.411765, 1.0]
+            );
+            assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+        }
+        if let Some(bytes) = fixture("negative_indices/negative_indices.obj") {
+            let obj = parse_obj(&bytes, &Limits::default()).unwrap();
+            let c = obj_to_gltf(&obj, None, &PartSet::new(), &ConvertLimits::default()).unwrap();
+            let prims = assert_faithful(&obj, &c);
+            assert_eq!(c.stats.vertices, distinct_corners(&obj));
+            assert_eq!(prims[0].len(), 1);
+            assert_eq!(prims[0][0].indices.len(), 36);
+            assert!(prims[0][0].uvs.is_some() && prims[0][0].normals.is_some());
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn obj_like_text_converts_faithfully_or_fails_cleanly(
+            parts in proptest::collection::vec(
+                prop::sample::select(vec![
+                    "v 0 0 0\n", "v 1 0 0\n", "v 0 1 0 0.5 0.5 0.5\n", "v 1 1 nan\n", "vt 0.5 1\n",
+                    "vn 0 0 1\n", "vn 0 0 0\n", "f 1 2 3\n", "f -1 -2 -3 -4\n", "f 1/1 2/1 3/1\n",
+                    "f 1//1 2//1 3//2\n", "f 1/1/1 2/1/1 3/1/1\n", "f 3/1/2 2/1/1 4/1/1\n",
+                    "o a\n", "o b\n", "g x\n", "usemtl m\n", "usemtl n\n", "usemtl\n",
+                ]),
+                0..40,
+            )
+        ) {
+            let text: String = parts.concat();
+            let Ok(obj) = parse_obj(text.as_bytes(), &Limits::default()) else {
+                return Ok(());
+            };
+            let mtl = parse_mtl(b"newmtl m\nKd 1 0 0\nmap_Kd m.png\nnorm -bm 2 -s 2 2 n.png\n")
+                .unwrap();
+            let mut set = PartSet::new();
+            set.insert("m.png", PNG).unwrap();
+            match obj_to_gltf(&obj, Some(&mtl), &set, &ConvertLimits::default()) {
+                Ok(c) => {
+                    assert_faithful(&obj, &c);
+                    prop_assert_eq!(c.stats.vertices, distinct_corners(&obj));
+                }
+                Err(ConvertError::NoFaces) => prop_assert_eq!(obj.triangle_count(), 0),
+                Err(ConvertError::NoFinitePosition { .. }) => {}
+                Err(e) => prop_assert!(false, "{e}"),
+            }
+        }
+    }
+}
