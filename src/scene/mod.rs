@@ -8,6 +8,7 @@
 
 pub mod error;
 pub mod gltf;
+pub mod input;
 pub mod obj;
 pub mod obj_gltf;
 pub mod report;

@@ -109,6 +109,23 @@ pub fn process<'a>(
     resources: &dyn Resources<'a>,
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
+    process_with(bytes, resources, options, &Internal::default())
+}
+
+/// Choices that depend on where the scene came from, not on the caller's options.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Internal {
+    /// Give tangents to primitives without a material (a converted OBJ without MTL).
+    pub no_material_means_tangents: bool,
+}
+
+/// [`process`], with the choices of [`Internal`].
+pub fn process_with<'a>(
+    bytes: &'a [u8],
+    resources: &dyn Resources<'a>,
+    options: &SceneOptions,
+    internal: &Internal,
+) -> Result<Processed, SceneError> {
     let limits = options.limits;
     let loaded = load::load(
         bytes,
@@ -131,6 +148,7 @@ pub fn process<'a>(
             overwrite: options.overwrite,
             all: options.all,
             axis: options.method == Method::Axis,
+            no_material_means_tangents: internal.no_material_means_tangents,
         },
     );
 

@@ -120,6 +120,9 @@ pub struct PlanOptions {
     pub all: bool,
     /// The axis method needs no texture coordinates.
     pub axis: bool,
+    /// Treat a primitive without a material as one that uses a normal map (a converted OBJ
+    /// without MTL, where nothing else says what the sender wants).
+    pub no_material_means_tangents: bool,
 }
 
 /// What a material says about tangents: whether it uses a frame, for which feature, on which
@@ -262,7 +265,10 @@ pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
             let action = match (topology, position) {
                 (None, _) => Action::Skip(SkipReason::NotTriangles { mode }),
                 (_, None) => Action::Skip(SkipReason::NoPositions),
-                _ if usage.uses.is_none() && !options.all => {
+                _ if usage.uses.is_none()
+                    && !options.all
+                    && !(material.is_none() && options.no_material_means_tangents) =>
+                {
                     if had_tangents && !options.overwrite {
                         Action::Skip(SkipReason::HasTangents)
                     } else if material.is_none() {
@@ -401,7 +407,7 @@ mod tests {
             PlanOptions {
                 overwrite: true,
                 all: true,
-                axis: false,
+                ..PlanOptions::default()
             },
         );
         assert_eq!(p[0].action, Action::Generate);

@@ -1,0 +1,232 @@
+//! One entry point for every input: GLB, `.gltf` or OBJ bytes, with the parts (buffers, images,
+//! MTL files) that came with them. The HTTP server and the CLI both call [`process`], so they
+//! cannot drift apart.
+//!
+//! An OBJ is converted to a glTF document first ([`super::obj_gltf`]) and then goes through the
+//! glTF path like any other scene. OBJ groups whose material has a normal map get tangents; so do
+//! faces with no material at all, since an OBJ sent to a tangent tool without an MTL gives no
+//! other way to say what it wants. Groups whose MTL material has no normal map are skipped, as in
+//! glTF, unless `all` is set.
+
+use super::error::SceneError;
+use super::gltf::{self, Processed, SceneOptions, glb, load::NoResources};
+use super::obj::{self, ObjErrorKind};
+use super::obj_gltf::{self, ConvertError, ConvertLimits};
+use super::uri::PartSet;
+use crate::tangent::Method;
+
+/// What kind of file the main input is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputKind {
+    Glb,
+    Gltf,
+    Obj,
+}
+
+impl InputKind {
+    /// Tells the kind from the bytes: the GLB magic, a JSON object, or else text, read as OBJ.
+    /// Binary data that is none of these is `None`.
+    pub fn sniff(bytes: &[u8]) -> Option<InputKind> {
+        if glb::is_glb(bytes) {
+            return Some(InputKind::Glb);
+        }
+        let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+        match text.iter().find(|b| !b.is_ascii_whitespace()) {
+            Some(b'{') => Some(InputKind::Gltf),
+            // OBJ is text; a NUL in the first kilobyte means it is not.
+            _ if !text.iter().take(1024).any(|&b| b == 0) => Some(InputKind::Obj),
+            _ => None,
+        }
+    }
+
+    /// From a media type (`model/gltf-binary`, `model/gltf+json`, `model/obj`), parameters
+    /// ignored.
+    pub fn from_media_type(media_type: &str) -> Option<InputKind> {
+        let essence = media_type.split(';').next().unwrap_or("").trim();
+        match essence.to_ascii_lowercase().as_str() {
+            "model/gltf-binary" => Some(InputKind::Glb),
+            "model/gltf+json" => Some(InputKind::Gltf),
+            "model/obj" | "text/x-obj" | "application/x-tgif" => Some(InputKind::Obj),
+            _ => None,
+        }
+    }
+
+    /// From a file name's extension.
+    pub fn from_file_name(name: &str) -> Option<InputKind> {
+        let extension = name.rsplit_once('.')?.1.to_ascii_lowercase();
+        match extension.as_str() {
+            "glb" => Some(InputKind::Glb),
+            "gltf" => Some(InputKind::Gltf),
+            "obj" => Some(InputKind::Obj),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            InputKind::Glb => "glb",
+            InputKind::Gltf => "gltf",
+            InputKind::Obj => "obj",
+        }
+    }
+}
+
+/// Processes one scene. `parts` holds what the main file refers to by name.
+pub fn process(
+    kind: InputKind,
+    main: &[u8],
+    parts: &PartSet<'_>,
+    options: &SceneOptions,
+) -> Result<Processed, SceneError> {
+    match kind {
+        InputKind::Glb | InputKind::Gltf => {
+            if kind == InputKind::Gltf && glb::is_glb(main) {
+                return Err(SceneError::malformed(
+                    "malformed-gltf",
+                    "the input was declared .gltf (JSON) but is a GLB",
+                ));
+            }
+            if kind == InputKind::Glb && !glb::is_glb(main) {
+                return Err(SceneError::malformed(
+                    "malformed-glb",
+                    "the input was declared GLB but does not start with the GLB magic 'glTF'",
+                ));
+            }
+            gltf::process(main, parts, options)
+        }
+        InputKind::Obj => process_obj(main, parts, options),
+    }
+}
+
+fn obj_error(error: obj::ObjError) -> SceneError {
+    match error.kind {
+        ObjErrorKind::LimitExceeded { .. } => {
+            SceneError::too_large("too-large", format!("OBJ {error}"))
+        }
+        _ => SceneError::malformed("malformed-obj", format!("OBJ {error}")),
+    }
+}
+
+fn process_obj(
+    main: &[u8],
+    parts: &PartSet<'_>,
+    options: &SceneOptions,
+) -> Result<Processed, SceneError> {
+    let limits = options.limits;
+    let parsed = obj::parse_obj(
+        main,
+        &obj::Limits {
+            max_vertices: limits.max_vertices,
+            max_triangles: limits.max_triangles,
+            ..obj::Limits::default()
+        },
+    )
+    .map_err(obj_error)?;
+    if parsed.uvs.is_empty() && options.method != Method::Axis && parsed.triangle_count() > 0 {
+        return Err(SceneError::unprocessable(
+            "obj-without-uvs",
+            "the OBJ has no texture coordinates (vt), and tangents follow them; ask for the axis method (method=axis) to get tangents that need none",
+        ));
+    }
+
+    let mut warnings = Vec::new();
+    let mut extra_bytes = 0u64;
+    let mut mtl: Option<obj::Mtl> = None;
+    for name in &parsed.material_libraries {
+        match parts.get(name) {
+            Ok(bytes) => {
+                extra_bytes += bytes.len() as u64;
+                let library = obj::parse_mtl(bytes).map_err(|e| {
+                    SceneError::malformed("malformed-mtl", format!("MTL {name:?}: {e}"))
+                })?;
+                match &mut mtl {
+                    None => mtl = Some(library),
+                    Some(all) => all.materials.extend(library.materials),
+                }
+            }
+            Err(_) => warnings.push(format!(
+                "the OBJ names the material library {name:?}, which was not supplied; its faces get default materials"
+            )),
+        }
+    }
+    let w = &parsed.warnings;
+    if w.unsupported_statements > 0 {
+        warnings.push(format!(
+            "{} OBJ statements were skipped ({})",
+            w.unsupported_statements,
+            w.unsupported_keywords.join(", ")
+        ));
+    }
+    for (count, what) in [
+        (
+            w.faces_with_partial_uvs,
+            "faces had texture coordinates on only some corners; they were dropped for those faces",
+        ),
+        (
+            w.faces_with_partial_normals,
+            "faces had normals on only some corners; they were dropped for those faces",
+        ),
+        (
+            w.faces_too_few_corners,
+            "faces had fewer than 3 corners and were skipped",
+        ),
+        (
+            w.polygons_fanned,
+            "polygons could not be ear-clipped and were triangulated as fans",
+        ),
+        (w.lines_skipped, "line statements were skipped"),
+        (w.points_skipped, "point statements were skipped"),
+    ] {
+        if count > 0 {
+            warnings.push(format!("{count} {what}"));
+        }
+    }
+
+    let converted = obj_gltf::obj_to_gltf(&parsed, mtl.as_ref(), parts, &ConvertLimits::default())
+        .map_err(|e| match e {
+            ConvertError::TooLarge { .. } => SceneError::too_large("too-large", e.to_string()),
+            _ => SceneError::unprocessable("obj-not-convertible", e.to_string()),
+        })?;
+    warnings.extend(converted.warnings);
+    let glb_bytes = glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
+        .map_err(|e| SceneError::too_large("too-large", format!("the converted OBJ {e}")))?;
+    let mut processed = gltf::process_with(
+        &glb_bytes,
+        &NoResources,
+        options,
+        &gltf::Internal {
+            no_material_means_tangents: true,
+        },
+    )?;
+    let report = &mut processed.report;
+    report.input_format = "obj";
+    report.input_bytes = main.len() as u64 + extra_bytes;
+    warnings.append(&mut report.warnings);
+    report.warnings = warnings;
+    Ok(processed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kinds_are_told_apart() {
+        assert_eq!(InputKind::sniff(b"glTF\x02\0\0\0"), Some(InputKind::Glb));
+        assert_eq!(
+            InputKind::sniff(b"\xEF\xBB\xBF  {\"asset\":{}}"),
+            Some(InputKind::Gltf)
+        );
+        assert_eq!(
+            InputKind::sniff(b"# comment\nv 0 0 0\n"),
+            Some(InputKind::Obj)
+        );
+        assert_eq!(InputKind::sniff(b"\x89PNG\r\n\x1a\n\0\0"), None);
+        assert_eq!(
+            InputKind::from_media_type("model/gltf+json; charset=utf-8"),
+            Some(InputKind::Gltf)
+        );
+        assert_eq!(InputKind::from_file_name("a.b.GLB"), Some(InputKind::Glb));
+        assert_eq!(InputKind::from_file_name("noextension"), None);
+    }
+}
