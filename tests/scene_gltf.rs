@@ -863,3 +863,109 @@ fn required_meshopt_compression_is_decoded() {
         .collect();
     assert_eq!(got, expected);
 }
+
+#[test]
+fn quantized_attributes_are_dequantized_and_remapped_in_their_own_types() {
+    // KHR_mesh_quantization: i16 positions, i8 normalized normals, u16 normalized UVs, and the
+    // mirrored UVs force a split, so each is copied into a new accessor of its own type.
+    let mut b = Builder::default();
+    let push = |b: &mut Builder, bytes: Vec<u8>, stride: Option<usize>| {
+        while b.bin.len() % 4 != 0 {
+            b.bin.push(0);
+        }
+        let mut view = json!({"buffer": 0, "byteOffset": b.bin.len(), "byteLength": bytes.len()});
+        if let Some(stride) = stride {
+            view["byteStride"] = json!(stride);
+        }
+        b.bin.extend_from_slice(&bytes);
+        b.views.push(view);
+        b.views.len() - 1
+    };
+    let positions: [[i16; 3]; 4] = [[0, 0, 0], [100, 0, 0], [100, 100, 0], [0, 100, 0]];
+    let bytes = positions
+        .iter()
+        .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()).chain([0, 0]))
+        .collect();
+    let view = push(&mut b, bytes, Some(8));
+    b.accessors.push(
+        json!({"bufferView": view, "componentType": 5122, "count": 4, "type": "VEC3",
+        "min": [0, 0, 0], "max": [100, 100, 0]}),
+    );
+    let bytes = (0..4).flat_map(|_| [0u8, 0, 127, 0]).collect();
+    let view = push(&mut b, bytes, Some(4));
+    b.accessors.push(json!({"bufferView": view, "componentType": 5120, "normalized": true, "count": 4, "type": "VEC3"}));
+    let uvs: [[u16; 2]; 4] = [[0, 0], [32767, 0], [32767, 32767], [65535, 0]];
+    let bytes = uvs
+        .iter()
+        .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
+        .collect();
+    let view = push(&mut b, bytes, None);
+    b.accessors.push(json!({"bufferView": view, "componentType": 5123, "normalized": true, "count": 4, "type": "VEC2"}));
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let mut doc = json!({
+        "extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0, "scale": [0.01, 0.01, 0.01]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
+            "indices": indices, "material": 0}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    let done = process_glb(&b.glb(doc), SceneOptions::default());
+    let diagnostics = done.report.primitives[0].diagnostics.clone().unwrap();
+    assert_eq!(diagnostics.vertices_added, 2);
+    // Quantized normals were renormalized before use, so none is reported as non-unit.
+    assert_eq!(diagnostics.non_unit_normals.count, 0);
+    let bytes = done.bytes.unwrap();
+    assert_valid("quantized.glb", &bytes);
+    let json = glb_json(&bytes);
+    let attributes = &json["meshes"][0]["primitives"][0]["attributes"];
+    let accessor =
+        |name: &str| json["accessors"][attributes[name].as_u64().unwrap() as usize].clone();
+    assert_eq!(accessor("POSITION")["componentType"], json!(5122));
+    assert_eq!(accessor("POSITION")["max"], json!([100, 100, 0]));
+    assert_eq!(accessor("NORMAL")["normalized"], json!(true));
+    assert_eq!(accessor("TEXCOORD_0")["componentType"], json!(5123));
+    assert_eq!(accessor("TEXCOORD_0")["count"], json!(6));
+}
+
+#[test]
+fn unknown_extensions_and_extras_survive_and_keep_everything_in_place() {
+    let mut b = Builder::default();
+    let position = b.floats(&QUAD_POSITIONS, "VEC3", true);
+    let normal = b.floats(&QUAD_NORMALS, "VEC3", false);
+    let uv = b.floats(&MIRRORED_UVS, "VEC2", false);
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let mut doc = json!({
+        "extensionsUsed": ["EXT_made_up"],
+        "extensions": {"EXT_made_up": {"accessor": 2, "note": "refers to an accessor by index"}},
+        "scene": 0, "scenes": [{"nodes": [0], "extras": {"a": 1}}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv}, "indices": indices, "material": 0,
+            "extras": {"keep": true}, "extensions": {"EXT_made_up": {"x": 1}}}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    let done = process_glb(&b.glb(doc), SceneOptions::default());
+    assert_eq!(done.report.summary.vertices_added, 2);
+    // The split orphaned accessors, but EXT_made_up might refer to them: nothing is dropped.
+    assert_eq!(done.report.dropped.accessors, 0);
+    assert!(
+        done.report
+            .dropped
+            .kept_because
+            .as_deref()
+            .is_some_and(|w| w.contains("EXT_made_up"))
+    );
+    let bytes = done.bytes.unwrap();
+    let json = glb_json(&bytes);
+    assert_eq!(json["extensions"]["EXT_made_up"]["accessor"], json!(2));
+    assert_eq!(
+        json["accessors"][2]["type"],
+        json!("VEC2"),
+        "accessor 2 is still the UVs"
+    );
+    let primitive = &json["meshes"][0]["primitives"][0];
+    assert_eq!(primitive["extras"], json!({"keep": true}));
+    assert_eq!(primitive["extensions"], json!({"EXT_made_up": {"x": 1}}));
+    assert_eq!(json["scenes"][0]["extras"], json!({"a": 1}));
+}
