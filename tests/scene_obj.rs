@@ -190,3 +190,44 @@ fn declared_kinds_must_match_the_bytes() {
     .unwrap();
     assert_eq!(error.code, "malformed-obj");
 }
+
+#[test]
+fn on_the_command_line_an_obj_finds_its_mtl_and_textures_beside_it() {
+    use tspace::scene::folder::Folder;
+    let dir = std::env::temp_dir().join(format!("tspace-obj-folder-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("maps")).unwrap();
+    let png = tspace::scene::uri::decode_data_uri(
+        "data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDwAEhQGAhKmMIQAAAABJRU5ErkJggg==",
+    )
+    .unwrap()
+    .unwrap()
+    .bytes;
+    std::fs::write(dir.join("maps/bumps.png"), &png).unwrap();
+    std::fs::write(
+        dir.join("quad.mtl"),
+        "newmtl m\nKd 1 1 1\nnorm .\\maps\\bumps.png\n",
+    )
+    .unwrap();
+    let obj = b"mtllib quad.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nusemtl m\nf 1/1/1 2/2/1 3/3/1 4/4/1\n";
+    let folder = Folder::new(&dir, 1 << 20);
+    let done = process(InputKind::Obj, obj, &folder, &SceneOptions::default()).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(done.report.summary.generated, 1, "{:?}", done.report);
+    assert!(
+        done.report.warnings.is_empty(),
+        "{:?}",
+        done.report.warnings
+    );
+    let bytes = done.bytes.unwrap();
+    assert_valid("folder.glb", &bytes);
+    let json = glb_json(&bytes);
+    assert_eq!(
+        json["materials"][0]["normalTexture"]["index"],
+        serde_json::json!(0)
+    );
+    assert_eq!(
+        json["images"][0]["mimeType"],
+        serde_json::json!("image/png")
+    );
+}

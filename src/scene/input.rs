@@ -9,7 +9,8 @@
 //! glTF, unless `all` is set.
 
 use super::error::SceneError;
-use super::gltf::{self, Processed, SceneOptions, glb, load::NoResources};
+use super::gltf::load::{NoResources, Resources};
+use super::gltf::{self, Processed, SceneOptions, glb};
 use super::obj::{self, ObjErrorKind};
 use super::obj_gltf::{self, ConvertError, ConvertLimits};
 use super::uri::PartSet;
@@ -71,11 +72,12 @@ impl InputKind {
     }
 }
 
-/// Processes one scene. `parts` holds what the main file refers to by name.
-pub fn process(
+/// Processes one scene. `resources` supplies what the main file refers to by name: an upload's
+/// parts ([`PartSet`]), or on the command line the file's folder ([`super::folder::Folder`]).
+pub fn process<'a>(
     kind: InputKind,
-    main: &[u8],
-    parts: &PartSet<'_>,
+    main: &'a [u8],
+    resources: &dyn Resources<'a>,
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
     match kind {
@@ -92,9 +94,9 @@ pub fn process(
                     "the input was declared GLB but does not start with the GLB magic 'glTF'",
                 ));
             }
-            gltf::process(main, parts, options)
+            gltf::process(main, resources, options)
         }
-        InputKind::Obj => process_obj(main, parts, options),
+        InputKind::Obj => process_obj(main, resources, options),
     }
 }
 
@@ -107,9 +109,9 @@ fn obj_error(error: obj::ObjError) -> SceneError {
     }
 }
 
-fn process_obj(
-    main: &[u8],
-    parts: &PartSet<'_>,
+fn process_obj<'a>(
+    main: &'a [u8],
+    resources: &dyn Resources<'a>,
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
     let limits = options.limits;
@@ -133,10 +135,10 @@ fn process_obj(
     let mut extra_bytes = 0u64;
     let mut mtl: Option<obj::Mtl> = None;
     for name in &parsed.material_libraries {
-        match parts.get(name) {
+        match resources.fetch(name) {
             Ok(bytes) => {
                 extra_bytes += bytes.len() as u64;
-                let library = obj::parse_mtl(bytes).map_err(|e| {
+                let library = obj::parse_mtl(&bytes).map_err(|e| {
                     SceneError::malformed("malformed-mtl", format!("MTL {name:?}: {e}"))
                 })?;
                 match &mut mtl {
@@ -182,11 +184,48 @@ fn process_obj(
         }
     }
 
-    let converted = obj_gltf::obj_to_gltf(&parsed, mtl.as_ref(), parts, &ConvertLimits::default())
-        .map_err(|e| match e {
-            ConvertError::TooLarge { .. } => SceneError::too_large("too-large", e.to_string()),
-            _ => SceneError::unprocessable("obj-not-convertible", e.to_string()),
-        })?;
+    // The textures the conversion embeds, fetched under the path the MTL wrote. MTL files from
+    // Windows tools write `.\name.jpg`; the slash form and the bare file name are tried too.
+    let mut images: Vec<(String, std::borrow::Cow<'a, [u8]>)> = Vec::new();
+    for material in mtl.iter().flat_map(|m| &m.materials) {
+        for texture in [
+            &material.diffuse_map,
+            &material.normal_map,
+            &material.bump_map,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if images.iter().any(|(n, _)| *n == texture.path) {
+                continue;
+            }
+            let slashed = texture.path.replace('\\', "/");
+            let file_name = slashed.rsplit('/').next().unwrap_or("").to_owned();
+            let found = [texture.path.as_str(), slashed.as_str(), file_name.as_str()]
+                .into_iter()
+                .filter(|c| !c.is_empty())
+                .find_map(|c| resources.fetch(c).ok());
+            if let Some(bytes) = found {
+                extra_bytes += bytes.len() as u64;
+                images.push((texture.path.clone(), bytes));
+            }
+        }
+    }
+    let mut image_parts = PartSet::new();
+    for (name, bytes) in &images {
+        // Names are distinct by construction.
+        let _ = image_parts.insert(name.clone(), bytes);
+    }
+    let converted = obj_gltf::obj_to_gltf(
+        &parsed,
+        mtl.as_ref(),
+        &image_parts,
+        &ConvertLimits::default(),
+    )
+    .map_err(|e| match e {
+        ConvertError::TooLarge { .. } => SceneError::too_large("too-large", e.to_string()),
+        _ => SceneError::unprocessable("obj-not-convertible", e.to_string()),
+    })?;
     warnings.extend(converted.warnings);
     let glb_bytes = glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
         .map_err(|e| SceneError::too_large("too-large", format!("the converted OBJ {e}")))?;

@@ -7,6 +7,7 @@
 //! the bytes actually present or by an explicit limit, and every recursion has a depth limit.
 
 pub mod error;
+pub mod folder;
 pub mod gltf;
 pub mod input;
 pub mod obj;
