@@ -1,0 +1,260 @@
+//! The command line: `tspace serve`, `tspace process`, `tspace analyze`, `tspace healthcheck`.
+//!
+//! Thin on purpose: argument parsing, file I/O and exit codes. Scenes are read, decided and
+//! written by [`crate::scene::input::process`], the same entry point the HTTP server calls.
+
+mod batch;
+mod health;
+mod outcome;
+mod paths;
+
+use crate::config::ServeArgs;
+use crate::scene::gltf::write::OutputFormat;
+use crate::tangent::Method;
+use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// The exit codes, for `--help` (the README repeats them).
+macro_rules! exit_codes {
+    () => {
+        "\
+Exit codes:
+  0  success
+  1  internal failure (a bug in tspace; the file is named and nothing is left half-written)
+  2  usage error (bad flags, -o with several inputs, an output that would replace an input)
+  3  bad input: a file that is missing, unreadable, not a scene, malformed, unprocessable or
+     over a limit
+  4  I/O failure writing an output or the report
+With several files the worst outcome wins, in the order 1, 4, 3, 0."
+    };
+}
+
+const EXIT_CODES: &str = exit_codes!();
+
+#[derive(Parser)]
+#[command(
+    name = "tspace",
+    version,
+    about = "Tangent frames for glTF, GLB and OBJ scenes",
+    after_long_help = EXIT_CODES
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the HTTP service.
+    Serve(ServeArgs),
+    /// Add tangents to scene files and write them as GLB (or .gltf).
+    #[command(after_long_help = PROCESS_HELP)]
+    Process(ProcessArgs),
+    /// Print the JSON report for one scene file without writing anything.
+    #[command(after_long_help = EXIT_CODES)]
+    Analyze(AnalyzeArgs),
+    /// GET /healthz on a running service; exit 0 when it answers 2xx, else 1 (for containers).
+    Healthcheck(health::HealthArgs),
+}
+
+const PROCESS_HELP: &str = concat!(
+    "\
+Outputs:
+  without -o or --out-dir   beside each input, as <stem>.tspace.glb (or .tspace.gltf)
+  -o FILE                   exactly one input file, written to FILE
+  --out-dir DIR             DIR/<stem>.glb; files found in a directory input keep their
+                            subfolder under DIR
+Directories are searched recursively for .glb, .gltf and .obj files, in name order; hidden
+files and folders, symbolic links to folders, and earlier outputs (*.tspace.glb, *.tspace.gltf)
+are left out. Buffers, images and MTL files are read from the folder of the file that names
+them, never from outside it. An output that would replace an input, or two inputs that would
+write the same output, is a usage error and nothing is written.
+
+Failures are printed one a line, `tspace: <file>: <message> (<code>)`, then one summary line.
+
+",
+    exit_codes!()
+);
+
+/// How tangents are computed (see the README's "Methods").
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum MethodArg {
+    /// MikkTSpace, what normal-map bakers use.
+    #[value(alias = "mikk")]
+    Mikktspace,
+    /// Faster and smooth, but not what bakers use.
+    Fast,
+    /// Needs no texture coordinates (for OBJ files without `vt`).
+    Axis,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Method {
+        match m {
+            MethodArg::Mikktspace => Method::MikkTSpace,
+            MethodArg::Fast => Method::Fast,
+            MethodArg::Axis => Method::Axis,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum FormatArg {
+    /// Binary glTF, images embedded.
+    Glb,
+    /// glTF JSON with its buffer embedded as a data: URI.
+    Gltf,
+}
+
+impl From<FormatArg> for OutputFormat {
+    fn from(f: FormatArg) -> OutputFormat {
+        match f {
+            FormatArg::Glb => OutputFormat::Glb,
+            FormatArg::Gltf => OutputFormat::GltfEmbedded,
+        }
+    }
+}
+
+/// What to do with each scene; shared by `process` and `analyze`.
+#[derive(Clone, Debug, Args)]
+struct SceneArgs {
+    /// How tangents are computed.
+    #[arg(long, value_enum, default_value = "mikktspace")]
+    method: MethodArg,
+    /// Recompute tangents that primitives already have (otherwise they are audited).
+    #[arg(long)]
+    overwrite: bool,
+    /// Give tangents to every triangle primitive, normal map or not.
+    #[arg(long)]
+    all: bool,
+}
+
+#[derive(Debug, Args)]
+struct ProcessArgs {
+    /// Scene files (.glb, .gltf, .obj) or directories to search for them.
+    #[arg(value_name = "IN", required = true)]
+    inputs: Vec<PathBuf>,
+    /// The output file (only with exactly one input file).
+    #[arg(
+        short = 'o',
+        long = "output",
+        value_name = "OUT",
+        conflicts_with = "out_dir"
+    )]
+    output: Option<PathBuf>,
+    /// Write outputs into this directory instead of beside the inputs.
+    #[arg(long, value_name = "DIR")]
+    out_dir: Option<PathBuf>,
+    /// Write the JSON report here: one report for one input file, else an array of
+    /// {input, output, report} or {input, error: {code, message}}.
+    #[arg(long, value_name = "FILE")]
+    report: Option<PathBuf>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Output format [default: glb, or gltf when -o names a .gltf file].
+    #[arg(long, value_enum)]
+    format: Option<FormatArg>,
+}
+
+#[derive(Debug, Args)]
+struct AnalyzeArgs {
+    /// One scene file (.glb, .gltf, .obj).
+    #[arg(value_name = "IN")]
+    input: PathBuf,
+    #[command(flatten)]
+    scene: SceneArgs,
+}
+
+/// How a command ended, ranked so that the worst of several can be kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Exit {
+    Ok,
+    BadInput,
+    Write,
+    Usage,
+    Internal,
+}
+
+impl Exit {
+    fn code(self) -> u8 {
+        match self {
+            Exit::Ok => 0,
+            Exit::Internal => 1,
+            Exit::Usage => 2,
+            Exit::BadInput => 3,
+            Exit::Write => 4,
+        }
+    }
+
+    fn rank(self) -> u8 {
+        match self {
+            Exit::Ok => 0,
+            Exit::BadInput => 1,
+            Exit::Write => 2,
+            Exit::Usage => 3,
+            Exit::Internal => 4,
+        }
+    }
+
+    /// The worse of the two.
+    pub(crate) fn worst(self, other: Exit) -> Exit {
+        if other.rank() > self.rank() {
+            other
+        } else {
+            self
+        }
+    }
+}
+
+impl From<Exit> for ExitCode {
+    fn from(e: Exit) -> ExitCode {
+        ExitCode::from(e.code())
+    }
+}
+
+/// A usage error found after parsing, printed the way clap prints its own (exit 2).
+fn usage_error(subcommand: &str, message: impl std::fmt::Display) -> Exit {
+    let mut command = Cli::command();
+    command.build();
+    let error = match command.find_subcommand_mut(subcommand) {
+        Some(sub) => sub.error(clap::error::ErrorKind::ArgumentConflict, message),
+        None => command.error(clap::error::ErrorKind::ArgumentConflict, message),
+    };
+    let _ = error.print();
+    Exit::Usage
+}
+
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Serve(args) => match crate::server::run(args.into()) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("tspace: {e}");
+                ExitCode::from(1)
+            }
+        },
+        Command::Process(args) => outcome::guarded_command(|| batch::process(args)).into(),
+        Command::Analyze(args) => outcome::guarded_command(|| batch::analyze(args)).into(),
+        Command::Healthcheck(args) => health::run(&args).into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_command_line_is_well_formed() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn the_worst_exit_wins() {
+        assert_eq!(Exit::Ok.worst(Exit::BadInput), Exit::BadInput);
+        assert_eq!(Exit::Write.worst(Exit::BadInput), Exit::Write);
+        assert_eq!(Exit::Write.worst(Exit::Internal), Exit::Internal);
+        assert_eq!(Exit::Ok.worst(Exit::Ok), Exit::Ok);
+    }
+}

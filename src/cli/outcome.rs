@@ -1,0 +1,169 @@
+//! Outcomes: why a file failed, panics caught and turned into failures, the failure line on
+//! stderr, and the `--report` document.
+
+use super::Exit;
+use crate::scene::error::SceneError;
+use crate::scene::report::Report;
+use serde::Serialize;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+
+/// Why one file failed.
+#[derive(Debug)]
+pub(crate) struct Failure {
+    pub exit: Exit,
+    pub code: &'static str,
+    pub message: String,
+}
+
+impl Failure {
+    pub(crate) fn bad_input(code: &'static str, message: impl Into<String>) -> Self {
+        Failure {
+            exit: Exit::BadInput,
+            code,
+            message: message.into(),
+        }
+    }
+}
+
+impl From<SceneError> for Failure {
+    fn from(e: SceneError) -> Self {
+        let mut message = e.message;
+        // The scene layer words this for the HTTP query string.
+        if e.code == "obj-without-uvs" {
+            message = if message.contains("method=axis") {
+                message.replace("method=axis", "--method axis")
+            } else {
+                format!("{message} (--method axis)")
+            };
+        }
+        Failure::bad_input(e.code, message)
+    }
+}
+
+/// What happened to one input.
+pub(crate) struct Outcome {
+    pub input: PathBuf,
+    pub output: Option<PathBuf>,
+    pub result: Result<Report, Failure>,
+}
+
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".to_owned())
+}
+
+/// Runs `f`, turning a panic into an internal failure.
+pub(crate) fn guarded<T>(f: impl FnOnce() -> Result<T, Failure>) -> Result<T, Failure> {
+    catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|payload| {
+        Err(Failure {
+            exit: Exit::Internal,
+            code: "internal",
+            message: format!(
+                "internal error: {}; this is a bug in tspace, please report it (RUST_BACKTRACE=1 shows where)",
+                panic_message(&*payload)
+            ),
+        })
+    })
+}
+
+/// Runs a whole command with panics kept from the terminal: each is reported as one line by
+/// whoever catches it. With `RUST_BACKTRACE` set, Rust's own panic message is printed as well.
+pub(crate) fn guarded_command(f: impl FnOnce() -> Exit) -> Exit {
+    if std::env::var_os("RUST_BACKTRACE").is_none() {
+        std::panic::set_hook(Box::new(|_| {}));
+    }
+    match guarded(|| Ok(f())) {
+        Ok(exit) => exit,
+        Err(failure) => {
+            eprintln!("tspace: {}", failure.message);
+            failure.exit
+        }
+    }
+}
+
+pub(crate) fn failure_line(path: &Path, failure: &Failure) -> String {
+    format!(
+        "tspace: {}: {} ({})",
+        path.display(),
+        failure.message,
+        failure.code
+    )
+}
+
+#[derive(Serialize)]
+struct ErrorJson<'a> {
+    code: &'a str,
+    message: &'a str,
+}
+
+/// One element of the `--report` array.
+#[derive(Serialize)]
+struct EntryJson<'a> {
+    input: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    output: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    report: Option<&'a Report>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    error: Option<ErrorJson<'a>>,
+}
+
+impl<'a> EntryJson<'a> {
+    fn of(outcome: &'a Outcome) -> Self {
+        let lossy = |p: &Path| p.to_string_lossy().into_owned();
+        let (report, error) = match &outcome.result {
+            Ok(report) => (Some(report), None),
+            Err(f) => (
+                None,
+                Some(ErrorJson {
+                    code: f.code,
+                    message: &f.message,
+                }),
+            ),
+        };
+        // A failed entry names its output only when writing it was what failed.
+        let output = match &outcome.result {
+            Ok(_)
+            | Err(Failure {
+                exit: Exit::Write, ..
+            }) => outcome.output.as_deref().map(lossy),
+            Err(_) => None,
+        };
+        EntryJson {
+            input: lossy(&outcome.input),
+            output,
+            report,
+            error,
+        }
+    }
+}
+
+/// The `--report` document: the report itself for one named input file that succeeded, that
+/// file's entry when it failed, else an array of entries.
+pub(crate) fn report_text(outcomes: &[Outcome], single: bool) -> serde_json::Result<String> {
+    match outcomes {
+        [one] if single => match &one.result {
+            Ok(report) => serde_json::to_string_pretty(report),
+            Err(_) => serde_json::to_string_pretty(&EntryJson::of(one)),
+        },
+        _ => serde_json::to_string_pretty(&outcomes.iter().map(EntryJson::of).collect::<Vec<_>>()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_becomes_an_internal_failure() {
+        let result: Result<(), Failure> = guarded(|| panic!("boom {}", 7));
+        let failure = result.unwrap_err();
+        assert_eq!(failure.exit, Exit::Internal);
+        assert_eq!(failure.code, "internal");
+        assert!(failure.message.contains("boom 7"), "{}", failure.message);
+    }
+}
