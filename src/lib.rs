@@ -1,2 +1,5 @@
+pub mod cli;
+pub mod config;
 pub mod scene;
+pub mod server;
 pub mod tangent;

@@ -1,0 +1,83 @@
+//! The service's settings, from flags or `TSPACE_*` environment variables (flags win).
+
+use clap::{Args, ValueEnum};
+use std::net::SocketAddr;
+use std::time::Duration;
+
+/// How request logs are written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable lines.
+    #[default]
+    Text,
+    /// One JSON object per line, for log collectors.
+    Json,
+}
+
+/// `tspace serve` flags.
+#[derive(Clone, Debug, Args)]
+pub struct ServeArgs {
+    /// Address to listen on.
+    #[arg(long, env = "TSPACE_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: SocketAddr,
+    /// Largest request body, in bytes (uploads with all their parts).
+    #[arg(long, env = "TSPACE_BODY_LIMIT", default_value_t = 256 * 1024 * 1024)]
+    pub body_limit: usize,
+    /// Most triangles one request may ask tangents for (morph targets count).
+    #[arg(long, env = "TSPACE_MAX_TRIANGLES", default_value_t = 16_000_000)]
+    pub max_triangles: usize,
+    /// Jobs that run at once (default: the number of cores).
+    #[arg(long, env = "TSPACE_CONCURRENCY")]
+    pub concurrency: Option<usize>,
+    /// Jobs that may wait for a worker; beyond that, requests get 503 at once.
+    #[arg(long, env = "TSPACE_QUEUE", default_value_t = 16)]
+    pub queue: usize,
+    /// Seconds a request may take before it is answered with 504.
+    #[arg(long, env = "TSPACE_TIMEOUT", default_value_t = 120)]
+    pub timeout: u64,
+    /// Log format.
+    #[arg(long, env = "TSPACE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
+    pub log_format: LogFormat,
+}
+
+/// The settings the server runs with.
+#[derive(Clone, Debug)]
+pub struct ServerConfig {
+    pub addr: SocketAddr,
+    pub body_limit: usize,
+    pub max_triangles: usize,
+    pub concurrency: usize,
+    pub queue: usize,
+    pub timeout: Duration,
+    pub log_format: LogFormat,
+}
+
+impl ServerConfig {
+    /// Settings for tests and embedding: an ephemeral loopback port, small queue.
+    pub fn local() -> Self {
+        ServerConfig {
+            addr: SocketAddr::from(([127, 0, 0, 1], 0)),
+            body_limit: 64 * 1024 * 1024,
+            max_triangles: 16_000_000,
+            concurrency: 2,
+            queue: 4,
+            timeout: Duration::from_secs(60),
+            log_format: LogFormat::Text,
+        }
+    }
+}
+
+impl From<ServeArgs> for ServerConfig {
+    fn from(args: ServeArgs) -> Self {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        ServerConfig {
+            addr: args.addr,
+            body_limit: args.body_limit,
+            max_triangles: args.max_triangles,
+            concurrency: args.concurrency.unwrap_or(cores).max(1),
+            queue: args.queue,
+            timeout: Duration::from_secs(args.timeout.max(1)),
+            log_format: args.log_format,
+        }
+    }
+}

@@ -1,0 +1,239 @@
+//! The HTTP service: thin handlers over [`crate::scene::input::process`], errors as problem+json,
+//! mesh work on a bounded pool, metrics, OpenAPI and Swagger UI.
+//!
+//! Routes: `POST /v1/tangents`, `POST /v1/analyze`, `GET /healthz`, `GET /readyz`,
+//! `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
+
+pub mod metrics;
+pub mod pool;
+pub mod problem;
+mod routes;
+
+use crate::config::{LogFormat, ServerConfig};
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
+use axum::http::{HeaderName, HeaderValue, Response, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::IntoResponse;
+use metrics::Metrics;
+use pool::WorkerPool;
+use problem::Problem;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+use tokio::net::TcpListener;
+use tokio::sync::oneshot;
+use tokio::task::JoinHandle;
+use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::request_id::{
+    MakeRequestId, PropagateRequestIdLayer, RequestId, SetRequestIdLayer,
+};
+use tower_http::trace::TraceLayer;
+use utoipa::OpenApi;
+use utoipa_swagger_ui::SwaggerUi;
+
+/// What every handler shares.
+pub struct App {
+    pub config: ServerConfig,
+    pub pool: WorkerPool,
+    pub metrics: Metrics,
+    /// Set when shutdown begins: `/readyz` then answers 503.
+    pub draining: AtomicBool,
+}
+
+const REQUEST_ID: HeaderName = HeaderName::from_static("x-request-id");
+
+/// Request ids: a per-process counter, short and sortable in logs.
+#[derive(Clone, Default)]
+struct Counter(Arc<AtomicU64>);
+
+impl MakeRequestId for Counter {
+    fn make_request_id<B>(&mut self, _: &axum::http::Request<B>) -> Option<RequestId> {
+        let n = self.0.fetch_add(1, Ordering::Relaxed) + 1;
+        HeaderValue::from_str(&format!("{n:08x}"))
+            .ok()
+            .map(RequestId::new)
+    }
+}
+
+async fn record_metrics(
+    State(app): State<Arc<App>>,
+    request: Request,
+    next: Next,
+) -> axum::response::Response {
+    let route = request
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or_else(|| "unmatched".to_owned(), |p| p.as_str().to_owned());
+    let started = Instant::now();
+    let response = next.run(request).await;
+    app.metrics
+        .record(&route, response.status().as_u16(), started.elapsed());
+    response
+}
+
+fn panic_response(payload: Box<dyn std::any::Any + Send + 'static>) -> Response<axum::body::Body> {
+    let message = payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_default();
+    tracing::error!(panic = %message, "handler panicked");
+    Problem::new(
+        StatusCode::INTERNAL_SERVER_ERROR,
+        "internal",
+        "tspace failed unexpectedly; the error was logged",
+    )
+    .into_response()
+}
+
+/// The whole router, for a given state.
+pub fn router(app: Arc<App>) -> Router {
+    let body_limit = app.config.body_limit;
+    let api = Router::new()
+        .route("/v1/tangents", axum::routing::post(routes::tangents))
+        .route("/v1/analyze", axum::routing::post(routes::analyze))
+        .route("/healthz", axum::routing::get(routes::healthz))
+        .route("/readyz", axum::routing::get(routes::readyz))
+        .route("/metrics", axum::routing::get(routes::metrics))
+        .route("/problems/{code}", axum::routing::get(routes::problem_type))
+        .merge(SwaggerUi::new("/docs").url("/openapi.json", routes::ApiDoc::openapi()))
+        .fallback(routes::not_found)
+        .route_layer(middleware::from_fn_with_state(
+            Arc::clone(&app),
+            record_metrics,
+        ))
+        .with_state(app);
+    api.layer(DefaultBodyLimit::max(body_limit))
+        .layer(CatchPanicLayer::custom(panic_response))
+        .layer(PropagateRequestIdLayer::new(REQUEST_ID))
+        .layer(
+            TraceLayer::new_for_http().make_span_with(|request: &axum::http::Request<_>| {
+                let id = request
+                    .headers()
+                    .get(REQUEST_ID)
+                    .and_then(|v| v.to_str().ok())
+                    .unwrap_or("-");
+                tracing::info_span!("request", id = %id, method = %request.method(), uri = %request.uri())
+            }),
+        )
+        .layer(SetRequestIdLayer::new(REQUEST_ID, Counter::default()))
+}
+
+/// A server running in the background of the current runtime.
+pub struct Running {
+    pub addr: SocketAddr,
+    pub app: Arc<App>,
+    shutdown: Option<oneshot::Sender<()>>,
+    handle: JoinHandle<std::io::Result<()>>,
+}
+
+impl Running {
+    /// Stops accepting, lets in-flight requests finish, and waits for them: at most the request
+    /// timeout and a few seconds more, since an idle keep-alive client could otherwise hold the
+    /// server open indefinitely.
+    pub async fn shutdown(mut self) -> std::io::Result<()> {
+        self.app.draining.store(true, Ordering::Release);
+        if let Some(sender) = self.shutdown.take() {
+            let _ = sender.send(());
+        }
+        let grace = self.app.config.timeout + std::time::Duration::from_secs(5);
+        match tokio::time::timeout(grace, &mut self.handle).await {
+            Ok(joined) => joined.map_err(std::io::Error::other)?,
+            Err(_) => {
+                tracing::warn!("connections still open after the grace period; closing them");
+                self.handle.abort();
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Binds `config.addr` and serves until [`Running::shutdown`].
+pub async fn start(config: ServerConfig) -> std::io::Result<Running> {
+    let listener = TcpListener::bind(config.addr).await?;
+    let addr = listener.local_addr()?;
+    let app = Arc::new(App {
+        pool: WorkerPool::new(config.concurrency, config.queue)?,
+        config,
+        metrics: Metrics::default(),
+        draining: AtomicBool::new(false),
+    });
+    let (sender, receiver) = oneshot::channel::<()>();
+    let service = router(Arc::clone(&app));
+    let handle = tokio::spawn(async move {
+        axum::serve(listener, service)
+            .with_graceful_shutdown(async {
+                let _ = receiver.await;
+            })
+            .await
+    });
+    Ok(Running {
+        addr,
+        app,
+        shutdown: Some(sender),
+        handle,
+    })
+}
+
+fn init_logging(format: LogFormat) {
+    let filter = tracing_subscriber::EnvFilter::try_from_env("TSPACE_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,tower_http=info"));
+    let builder = tracing_subscriber::fmt().with_env_filter(filter);
+    // A second initialisation (tests) is harmless and ignored.
+    let _ = match format {
+        LogFormat::Text => builder.try_init(),
+        LogFormat::Json => builder.json().try_init(),
+    };
+}
+
+async fn shutdown_signal() {
+    let interrupt = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        let mut terminate =
+            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+                Ok(s) => s,
+                Err(_) => {
+                    let _ = interrupt.await;
+                    return;
+                }
+            };
+        tokio::select! {
+            _ = interrupt => {},
+            _ = terminate.recv() => {},
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = interrupt.await;
+    }
+}
+
+/// `tspace serve`: runs until SIGINT or SIGTERM, then finishes in-flight requests.
+pub fn run(config: ServerConfig) -> std::io::Result<()> {
+    init_logging(config.log_format);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    runtime.block_on(async move {
+        let running = start(config.clone()).await?;
+        tracing::info!(
+            addr = %running.addr,
+            concurrency = config.concurrency,
+            queue = config.queue,
+            body_limit = config.body_limit,
+            "tspace listening"
+        );
+        shutdown_signal().await;
+        tracing::info!("shutting down: finishing in-flight requests");
+        running.shutdown().await
+    })
+}
+
+/// The media type of a response body in a header value.
+pub(crate) fn content_type(value: &'static str) -> (header::HeaderName, HeaderValue) {
+    (header::CONTENT_TYPE, HeaderValue::from_static(value))
+}

@@ -1,0 +1,549 @@
+//! The handlers: read the request (raw body or multipart), hand the scene to the worker pool,
+//! and turn its answer into a response.
+
+use super::problem::{CODES, Problem};
+use super::{App, content_type};
+use crate::scene::gltf::write::OutputFormat;
+use crate::scene::gltf::{Processed, SceneLimits, SceneOptions};
+use crate::scene::input::{self, InputKind};
+use crate::scene::uri::{PartSet, percent_decode};
+use crate::tangent::Method;
+use axum::body::{Body, Bytes};
+use axum::extract::{FromRequest, Multipart, Path, RawQuery, Request, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use utoipa::OpenApi;
+
+/// The query options of both POST routes.
+struct Query {
+    method: Method,
+    overwrite: bool,
+    all: bool,
+    format: OutputFormat,
+}
+
+fn parse_bool(key: &str, value: &str) -> Result<bool, Problem> {
+    match value {
+        "" | "true" | "1" | "yes" => Ok(true),
+        "false" | "0" | "no" => Ok(false),
+        _ => Err(invalid_option(format!(
+            "{key}={value:?}: expected true or false"
+        ))),
+    }
+}
+
+fn invalid_option(detail: String) -> Problem {
+    Problem::new(StatusCode::BAD_REQUEST, "invalid-option", detail)
+}
+
+fn parse_query(raw: Option<&str>) -> Result<Query, Problem> {
+    let mut query = Query {
+        method: Method::MikkTSpace,
+        overwrite: false,
+        all: false,
+        format: OutputFormat::Glb,
+    };
+    for pair in raw.unwrap_or("").split('&').filter(|p| !p.is_empty()) {
+        let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
+        let value = percent_decode(&value.replace('+', " "))
+            .map_err(|e| invalid_option(format!("{key}: {e}")))?;
+        match key {
+            "method" => {
+                query.method = Method::from_name(&value).ok_or_else(|| {
+                    invalid_option(format!(
+                        "method={value:?}: expected mikktspace, fast or axis"
+                    ))
+                })?
+            }
+            "overwrite" => query.overwrite = parse_bool(key, &value)?,
+            "all" => query.all = parse_bool(key, &value)?,
+            "format" => {
+                query.format = match value.as_str() {
+                    "glb" => OutputFormat::Glb,
+                    "gltf" => OutputFormat::GltfEmbedded,
+                    _ => {
+                        return Err(invalid_option(format!(
+                            "format={value:?}: expected glb or gltf"
+                        )));
+                    }
+                }
+            }
+            _ => {
+                return Err(invalid_option(format!(
+                    "unknown option {key:?}; the options are method, overwrite, all and format"
+                )));
+            }
+        }
+    }
+    Ok(query)
+}
+
+/// The scene and its named parts, as the request carried them.
+struct Upload {
+    kind: InputKind,
+    main: Bytes,
+    parts: Vec<(String, Bytes)>,
+}
+
+fn media_type(headers: &HeaderMap) -> Option<String> {
+    headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .map(|v| {
+            v.split(';')
+                .next()
+                .unwrap_or("")
+                .trim()
+                .to_ascii_lowercase()
+        })
+}
+
+fn kind_of(declared: Option<&str>, name: Option<&str>, bytes: &[u8]) -> Result<InputKind, Problem> {
+    if let Some(kind) = declared.and_then(InputKind::from_media_type) {
+        return Ok(kind);
+    }
+    if let Some(kind) = name.and_then(InputKind::from_file_name) {
+        return Ok(kind);
+    }
+    match declared {
+        None | Some("application/octet-stream" | "text/plain" | "") => {}
+        Some(other) => {
+            return Err(Problem::new(
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                "unsupported-media-type",
+                format!(
+                    "{other} is not a scene; send model/gltf-binary, model/gltf+json, model/obj, multipart/form-data, or application/octet-stream to have the bytes sniffed"
+                ),
+            ));
+        }
+    }
+    InputKind::sniff(bytes).ok_or_else(|| {
+        Problem::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "unsupported-media-type",
+            "the body is neither GLB, glTF JSON nor OBJ text",
+        )
+    })
+}
+
+fn too_large(limit: usize) -> Problem {
+    Problem::new(
+        StatusCode::PAYLOAD_TOO_LARGE,
+        "body-too-large",
+        format!("the request body is over the limit of {limit} bytes"),
+    )
+}
+
+async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
+    let limit = app.config.body_limit;
+    let headers = request.headers().clone();
+    let declared_length = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared_length.is_some_and(|n| n > limit as u64) {
+        return Err(too_large(limit));
+    }
+    let media = media_type(&headers);
+    if media.as_deref() == Some("multipart/form-data") {
+        let mut multipart = Multipart::from_request(request, &()).await.map_err(|e| {
+            Problem::new(
+                StatusCode::BAD_REQUEST,
+                "malformed-multipart",
+                e.body_text(),
+            )
+        })?;
+        let mut fields: Vec<(String, Option<String>, Option<String>, Bytes)> = Vec::new();
+        loop {
+            let field = match multipart.next_field().await {
+                Ok(Some(field)) => field,
+                Ok(None) => break,
+                Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
+                    return Err(too_large(limit));
+                }
+                Err(e) => {
+                    return Err(Problem::new(
+                        StatusCode::BAD_REQUEST,
+                        "malformed-multipart",
+                        e.body_text(),
+                    ));
+                }
+            };
+            let field_name = field.name().unwrap_or("").to_owned();
+            let file_name = field.file_name().map(str::to_owned);
+            let part_type = field.content_type().map(str::to_owned);
+            let bytes = match field.bytes().await {
+                Ok(bytes) => bytes,
+                Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
+                    return Err(too_large(limit));
+                }
+                Err(e) => {
+                    return Err(Problem::new(
+                        StatusCode::BAD_REQUEST,
+                        "malformed-multipart",
+                        e.body_text(),
+                    ));
+                }
+            };
+            fields.push((field_name, file_name, part_type, bytes));
+        }
+        // The scene is the field named file, scene or model; else the first .gltf, .glb or
+        // .obj; else the first field.
+        let main = fields
+            .iter()
+            .position(|(n, _, _, _)| matches!(n.as_str(), "file" | "scene" | "model"))
+            .or_else(|| {
+                fields.iter().position(|(_, f, _, _)| {
+                    f.as_deref().and_then(InputKind::from_file_name).is_some()
+                })
+            })
+            .or(if fields.is_empty() { None } else { Some(0) })
+            .ok_or_else(|| {
+                Problem::new(
+                    StatusCode::BAD_REQUEST,
+                    "missing-file",
+                    "the multipart body has no parts; send the scene as a part named file",
+                )
+            })?;
+        let (_, file_name, part_type, bytes) = fields.remove(main);
+        let declared = part_type.filter(|t| t != "application/octet-stream");
+        let kind = kind_of(declared.as_deref(), file_name.as_deref(), &bytes)?;
+        let parts = fields
+            .into_iter()
+            .map(|(name, file_name, _, bytes)| (file_name.unwrap_or(name), bytes))
+            .collect();
+        return Ok(Upload {
+            kind,
+            main: bytes,
+            parts,
+        });
+    }
+    let body = axum::body::to_bytes(request.into_body(), limit)
+        .await
+        .map_err(|_| too_large(limit))?;
+    if body.is_empty() {
+        return Err(Problem::new(
+            StatusCode::BAD_REQUEST,
+            "missing-file",
+            "the request body is empty; send a GLB, a .gltf or an OBJ",
+        ));
+    }
+    let kind = kind_of(media.as_deref(), None, &body)?;
+    Ok(Upload {
+        kind,
+        main: body,
+        parts: Vec::new(),
+    })
+}
+
+/// Runs the scene on the pool, within the time limit.
+async fn run(app: &Arc<App>, upload: Upload, options: SceneOptions) -> Result<Processed, Problem> {
+    let job = move || {
+        let mut parts = PartSet::new();
+        for (name, bytes) in &upload.parts {
+            if let Err(e) = parts.insert(name.clone(), bytes) {
+                return Err(Problem::new(
+                    StatusCode::BAD_REQUEST,
+                    "malformed-multipart",
+                    e.to_string(),
+                ));
+            }
+        }
+        input::process(upload.kind, &upload.main, &parts, &options).map_err(Problem::from)
+    };
+    let processed = run_job(app, job).await??;
+    let summary = &processed.report.summary;
+    app.metrics
+        .triangles
+        .fetch_add(summary.triangles, Ordering::Relaxed);
+    app.metrics
+        .vertices_added
+        .fetch_add(summary.vertices_added, Ordering::Relaxed);
+    Ok(processed)
+}
+
+/// Runs `job` on the worker pool within the request timeout: 503 when the pool is full, 504
+/// when the time is up, 500 when the job panics (the pool carries on).
+async fn run_job<T, F>(app: &Arc<App>, job: F) -> Result<T, Problem>
+where
+    T: Send + 'static,
+    F: FnOnce() -> T + Send + 'static,
+{
+    let receiver = app.pool.submit(job).map_err(|_| {
+        app.metrics.reject("overloaded");
+        Problem::overloaded()
+    })?;
+    match tokio::time::timeout(app.config.timeout, receiver).await {
+        Err(_) => {
+            app.metrics.reject("timeout");
+            Err(Problem::new(
+                StatusCode::GATEWAY_TIMEOUT,
+                "timeout",
+                format!(
+                    "the scene took longer than {} s",
+                    app.config.timeout.as_secs()
+                ),
+            ))
+        }
+        Ok(Err(_)) => Err(internal("the worker went away")),
+        Ok(Ok(Err(panic))) => Err(internal(&panic.0)),
+        Ok(Ok(Ok(result))) => Ok(result),
+    }
+}
+
+fn internal(cause: &str) -> Problem {
+    tracing::error!(cause, "a job failed unexpectedly");
+    Problem::new(
+        StatusCode::INTERNAL_SERVER_ERROR,
+        "internal",
+        "tspace failed unexpectedly on this scene; the error was logged",
+    )
+}
+
+fn scene_options(app: &App, query: &Query, write: bool) -> SceneOptions {
+    SceneOptions {
+        method: query.method,
+        overwrite: query.overwrite,
+        all: query.all,
+        format: query.format,
+        write,
+        limits: SceneLimits {
+            max_triangles: app.config.max_triangles,
+            ..SceneLimits::default()
+        },
+        ..SceneOptions::default()
+    }
+}
+
+fn wants_multipart(headers: &HeaderMap) -> bool {
+    headers
+        .get_all(header::ACCEPT)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .any(|v| v.to_ascii_lowercase().contains("multipart/mixed"))
+}
+
+/// Adds tangents to a scene.
+#[utoipa::path(
+    post,
+    path = "/v1/tangents",
+    params(
+        ("method" = Option<String>, Query, description = "mikktspace (default), fast, or axis"),
+        ("overwrite" = Option<bool>, Query, description = "recompute tangents a primitive already has"),
+        ("all" = Option<bool>, Query, description = "give tangents to every triangle primitive, whatever its material"),
+        ("format" = Option<String>, Query, description = "glb (default) or gltf (JSON with an embedded buffer)"),
+    ),
+    request_body(
+        description = "A GLB, a .gltf or an OBJ (model/gltf-binary, model/gltf+json, model/obj, or sniffed), or multipart/form-data with the scene (part `file`) and its buffers, images and MTL as parts named by file name.",
+        content(
+            (Vec<u8> = "model/gltf-binary"),
+            (Vec<u8> = "model/gltf+json"),
+            (Vec<u8> = "model/obj"),
+            (Vec<u8> = "multipart/form-data"),
+        )
+    ),
+    responses(
+        (status = 200, description = "The scene with tangents. Header X-Tspace-Report holds the report's summary; with Accept: multipart/mixed the body holds the full JSON report, then the scene.", content(
+            (Vec<u8> = "model/gltf-binary"),
+            (Vec<u8> = "model/gltf+json"),
+            (Vec<u8> = "multipart/mixed"),
+        )),
+        (status = 400, description = "Malformed input or option (application/problem+json)"),
+        (status = 413, description = "Over a size limit"),
+        (status = 415, description = "Not a scene"),
+        (status = 422, description = "Well-formed but cannot be processed (Draco required, missing part, OBJ without UVs)"),
+        (status = 503, description = "Overloaded; see Retry-After"),
+        (status = 504, description = "Took too long"),
+    )
+)]
+pub async fn tangents(
+    State(app): State<Arc<App>>,
+    RawQuery(raw): RawQuery,
+    request: Request,
+) -> Result<Response, Problem> {
+    let query = parse_query(raw.as_deref())?;
+    let multipart = wants_multipart(request.headers());
+    let upload = read_upload(&app, request).await?;
+    let processed = run(&app, upload, scene_options(&app, &query, true)).await?;
+    let bytes = processed.bytes.unwrap_or_default();
+    let scene_type = match query.format {
+        OutputFormat::Glb => "model/gltf-binary",
+        OutputFormat::GltfEmbedded => "model/gltf+json",
+    };
+    if multipart {
+        let boundary = "tspace-report-and-scene-7c1f3a";
+        let report = processed.report.to_json_pretty();
+        let file_name = match query.format {
+            OutputFormat::Glb => "scene.glb",
+            OutputFormat::GltfEmbedded => "scene.gltf",
+        };
+        let mut body = Vec::with_capacity(bytes.len() + report.len() + 512);
+        body.extend_from_slice(
+            format!(
+                "--{boundary}\r\nContent-Type: application/json\r\nContent-Disposition: inline; name=\"report\"\r\n\r\n{report}\r\n--{boundary}\r\nContent-Type: {scene_type}\r\nContent-Disposition: attachment; name=\"scene\"; filename=\"{file_name}\"\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        body.extend_from_slice(&bytes);
+        body.extend_from_slice(format!("\r\n--{boundary}--\r\n").as_bytes());
+        let mut response = Response::new(Body::from(body));
+        if let Ok(value) = HeaderValue::from_str(&format!("multipart/mixed; boundary={boundary}")) {
+            response.headers_mut().insert(header::CONTENT_TYPE, value);
+        }
+        return Ok(response);
+    }
+    let mut response = Response::new(Body::from(bytes));
+    let headers = response.headers_mut();
+    let (name, value) = content_type(scene_type);
+    headers.insert(name, value);
+    if let Ok(value) = HeaderValue::from_str(&processed.report.summary_line()) {
+        headers.insert("x-tspace-report", value);
+    }
+    Ok(response)
+}
+
+/// Reports what `/v1/tangents` would do, without writing a scene.
+#[utoipa::path(
+    post,
+    path = "/v1/analyze",
+    params(
+        ("method" = Option<String>, Query, description = "mikktspace (default), fast, or axis"),
+        ("overwrite" = Option<bool>, Query, description = "as for /v1/tangents"),
+        ("all" = Option<bool>, Query, description = "as for /v1/tangents"),
+    ),
+    request_body(description = "As for /v1/tangents", content((Vec<u8> = "model/gltf-binary"))),
+    responses(
+        (status = 200, description = "The full JSON report", content_type = "application/json"),
+        (status = 400, description = "Malformed input or option"),
+        (status = 413, description = "Over a size limit"),
+        (status = 415, description = "Not a scene"),
+        (status = 422, description = "Cannot be processed"),
+        (status = 503, description = "Overloaded"),
+    )
+)]
+pub async fn analyze(
+    State(app): State<Arc<App>>,
+    RawQuery(raw): RawQuery,
+    request: Request,
+) -> Result<Response, Problem> {
+    let query = parse_query(raw.as_deref())?;
+    let upload = read_upload(&app, request).await?;
+    let processed = run(&app, upload, scene_options(&app, &query, false)).await?;
+    let mut response = Response::new(Body::from(processed.report.to_json_pretty()));
+    let (name, value) = content_type("application/json");
+    response.headers_mut().insert(name, value);
+    Ok(response)
+}
+
+/// Liveness: the process answers.
+#[utoipa::path(get, path = "/healthz", responses((status = 200, description = "ok")))]
+pub async fn healthz() -> &'static str {
+    "ok\n"
+}
+
+/// Readiness: accepting work (not shutting down, queue not full).
+#[utoipa::path(get, path = "/readyz", responses(
+    (status = 200, description = "ready"),
+    (status = 503, description = "shutting down or saturated")
+))]
+pub async fn readyz(State(app): State<Arc<App>>) -> Response {
+    if app.draining.load(Ordering::Acquire) {
+        return (StatusCode::SERVICE_UNAVAILABLE, "shutting down\n").into_response();
+    }
+    if app.pool.queued() >= app.config.queue && app.pool.running() >= app.config.concurrency {
+        return (StatusCode::SERVICE_UNAVAILABLE, "saturated\n").into_response();
+    }
+    (StatusCode::OK, "ready\n").into_response()
+}
+
+/// Prometheus metrics.
+#[utoipa::path(get, path = "/metrics", responses((status = 200, description = "Prometheus text format", content_type = "text/plain")))]
+pub async fn metrics(State(app): State<Arc<App>>) -> Response {
+    let text = app.metrics.render(app.pool.queued(), app.pool.running());
+    let mut response = Response::new(Body::from(text));
+    let (name, value) = content_type("text/plain; version=0.0.4; charset=utf-8");
+    response.headers_mut().insert(name, value);
+    response
+}
+
+/// What a problem `type` means.
+pub async fn problem_type(Path(code): Path<String>) -> Response {
+    match CODES.iter().find(|(c, _, _)| *c == code) {
+        Some((code, status, title)) => (
+            StatusCode::OK,
+            format!("{code} (HTTP {status}): {title}.\n"),
+        )
+            .into_response(),
+        None => not_found().await.into_response(),
+    }
+}
+
+pub async fn not_found() -> Problem {
+    Problem {
+        type_uri: "about:blank".into(),
+        title: "Not Found",
+        status: 404,
+        detail: "no such route; see /docs".into(),
+        code: "not-found",
+        retry_after: None,
+    }
+}
+
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "tspace",
+        description = "Tangent frames for glTF, GLB and OBJ scenes: MikkTSpace-exact, with a report of what was found."
+    ),
+    paths(tangents, analyze, healthz, readyz, metrics)
+)]
+pub struct ApiDoc;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ServerConfig;
+    use crate::server::metrics::Metrics;
+    use crate::server::pool::WorkerPool;
+    use std::sync::atomic::AtomicBool;
+
+    #[tokio::test]
+    async fn a_panicking_job_is_a_500_and_the_pool_serves_on() {
+        let config = ServerConfig::local();
+        let app = Arc::new(App {
+            pool: WorkerPool::new(1, 0).unwrap(),
+            config,
+            metrics: Metrics::default(),
+            draining: AtomicBool::new(false),
+        });
+        let problem = run_job(&app, || -> u8 { panic!("index out of bounds") })
+            .await
+            .err()
+            .unwrap();
+        assert_eq!((problem.status, problem.code), (500, "internal"));
+        assert!(
+            !problem.detail.contains("index out of bounds"),
+            "no internals leak"
+        );
+        assert_eq!(run_job(&app, || 5u8).await.unwrap(), 5);
+    }
+
+    #[test]
+    fn options_parse_or_say_why_not() {
+        let q = parse_query(Some("method=fast&overwrite&all=false&format=gltf")).unwrap();
+        assert_eq!(q.method, Method::Fast);
+        assert!(q.overwrite && !q.all);
+        assert_eq!(q.format, OutputFormat::GltfEmbedded);
+        for bad in [
+            "method=magic",
+            "overwrite=maybe",
+            "format=fbx",
+            "colour=red",
+        ] {
+            let problem = parse_query(Some(bad)).err().unwrap();
+            assert_eq!(problem.code, "invalid-option", "{bad}");
+        }
+    }
+}

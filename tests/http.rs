@@ -1,0 +1,511 @@
+//! The HTTP service, started for real on an ephemeral loopback port and called with reqwest.
+
+#[allow(unused_imports)]
+mod common;
+
+use common::scene::{Builder, normal_mapped, texture_stub};
+use reqwest::multipart::{Form, Part};
+use serde_json::{Value, json};
+use std::path::Path;
+use std::time::Duration;
+use tspace::config::ServerConfig;
+use tspace::server::{Running, start};
+
+fn fixture(path: &str) -> Vec<u8> {
+    std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures")
+            .join(path),
+    )
+    .unwrap()
+}
+
+async fn server(config: ServerConfig) -> (Running, String) {
+    let running = start(config).await.expect("server starts");
+    let base = format!("http://{}", running.addr);
+    (running, base)
+}
+
+fn client() -> reqwest::Client {
+    reqwest::Client::builder().build().unwrap()
+}
+
+/// A normal-mapped grid of `2 n²` triangles, as a GLB.
+fn grid(n: usize) -> Vec<u8> {
+    let mut positions = Vec::with_capacity((n + 1) * (n + 1) * 3);
+    let mut normals = Vec::with_capacity(positions.capacity());
+    let mut uvs = Vec::with_capacity((n + 1) * (n + 1) * 2);
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+            positions.extend([u, v, (u * 7.0).sin() * 0.1]);
+            normals.extend([0.0, 0.0, 1.0]);
+            uvs.extend([u, v]);
+        }
+    }
+    let mut indices: Vec<u32> = Vec::with_capacity(n * n * 6);
+    let row = (n + 1) as u32;
+    for j in 0..n as u32 {
+        for i in 0..n as u32 {
+            let v = j * row + i;
+            indices.extend([v, v + 1, v + row + 1, v, v + row + 1, v + row]);
+        }
+    }
+    let mut b = Builder::default();
+    let position = b.floats(&positions, "VEC3", true);
+    let normal = b.floats(&normals, "VEC3", false);
+    let uv = b.floats(&uvs, "VEC2", false);
+    // u32 indices: the builder only writes u16, so add this view by hand.
+    while b.bin.len() % 4 != 0 {
+        b.bin.push(0);
+    }
+    let offset = b.bin.len();
+    b.bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    b.views
+        .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": indices.len() * 4}));
+    b.accessors.push(
+        json!({"bufferView": b.views.len() - 1, "componentType": 5125,
+        "count": indices.len(), "type": "SCALAR"}),
+    );
+    let index = b.accessors.len() - 1;
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv}, "indices": index, "material": 0}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    b.glb(doc)
+}
+
+async fn problem(response: reqwest::Response, status: u16, code: &str) -> Value {
+    assert_eq!(response.status().as_u16(), status);
+    assert_eq!(
+        response.headers()["content-type"].to_str().unwrap(),
+        "application/problem+json"
+    );
+    let body: Value = response.json().await.unwrap();
+    assert_eq!(body["code"], json!(code), "{body}");
+    assert_eq!(body["type"], json!(format!("/problems/{code}")));
+    assert_eq!(body["status"], json!(status));
+    assert!(body["detail"].as_str().is_some_and(|d| !d.is_empty()));
+    body
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn each_input_kind_gets_tangents() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let http = client();
+
+    // A raw GLB, sniffed.
+    let response = http
+        .post(format!("{base}/v1/tangents"))
+        .body(grid(4))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "model/gltf-binary");
+    let summary: Value =
+        serde_json::from_str(response.headers()["x-tspace-report"].to_str().unwrap()).unwrap();
+    assert_eq!(summary["generated"], json!(1));
+    let bytes = response.bytes().await.unwrap();
+    assert!(tspace::scene::gltf::glb::parse(&bytes).is_ok());
+
+    // A .gltf with its buffer embedded, declared by media type; `all` because it has no normal map.
+    let response = http
+        .post(format!("{base}/v1/tangents?all=true"))
+        .header("content-type", "model/gltf+json")
+        .body(fixture("BoxTextured_embedded/BoxTextured.gltf"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let summary: Value =
+        serde_json::from_str(response.headers()["x-tspace-report"].to_str().unwrap()).unwrap();
+    assert_eq!(summary["generated"], json!(1));
+
+    // A .gltf with its .bin as a part (names as curl -F sends them).
+    let form = Form::new()
+        .part(
+            "file",
+            Part::bytes(fixture("Avocado/Avocado.gltf")).file_name("Avocado.gltf"),
+        )
+        .part(
+            "bin",
+            Part::bytes(fixture("Avocado/Avocado.bin")).file_name("Avocado.bin"),
+        );
+    let response = http
+        .post(format!("{base}/v1/tangents?overwrite=true"))
+        .multipart(form)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let summary: Value =
+        serde_json::from_str(response.headers()["x-tspace-report"].to_str().unwrap()).unwrap();
+    assert_eq!(summary["generated"], json!(1));
+
+    // OBJ with its MTL.
+    let form = Form::new()
+        .part(
+            "file",
+            Part::bytes(fixture("spider/spider.obj")).file_name("spider.obj"),
+        )
+        .part(
+            "mtl",
+            Part::bytes(fixture("spider/spider.mtl")).file_name("spider.mtl"),
+        );
+    let response = http
+        .post(format!("{base}/v1/tangents?all=1&format=gltf"))
+        .multipart(form)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "model/gltf+json");
+    let gltf: Value = response.json().await.unwrap();
+    assert!(
+        gltf["buffers"][0]["uri"]
+            .as_str()
+            .unwrap()
+            .starts_with("data:")
+    );
+    running.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn options_analyze_and_multipart_mixed() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let http = client();
+    let response = http
+        .post(format!("{base}/v1/analyze?method=fast"))
+        .header("content-type", "model/gltf-binary")
+        .body(grid(4))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let report: Value = response.json().await.unwrap();
+    assert_eq!(report["method"], json!("fast"));
+    assert!(report.get("output_bytes").is_none());
+    assert_eq!(report["primitives"][0]["action"], json!("generated"));
+
+    let response = http
+        .post(format!("{base}/v1/tangents"))
+        .header("accept", "multipart/mixed")
+        .body(grid(4))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let content_type = response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    let boundary = content_type.split("boundary=").nth(1).unwrap().to_owned();
+    let body = response.bytes().await.unwrap();
+    let text = String::from_utf8_lossy(&body);
+    let sections: Vec<&str> = text.split(&format!("--{boundary}")).collect();
+    assert_eq!(sections.len(), 4, "preamble, report, scene, end");
+    assert!(sections[1].contains("application/json"));
+    let json_start = sections[1].find("\r\n\r\n").unwrap() + 4;
+    let report: Value = serde_json::from_str(sections[1][json_start..].trim_end()).unwrap();
+    assert_eq!(report["summary"]["generated"], json!(1));
+    assert!(sections[2].contains("model/gltf-binary"));
+    assert!(sections[2].contains("glTF"));
+
+    let response = http
+        .post(format!("{base}/v1/tangents?method=magic"))
+        .body(grid(2))
+        .send()
+        .await
+        .unwrap();
+    problem(response, 400, "invalid-option").await;
+    running.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_error_is_a_problem() {
+    let config = ServerConfig {
+        body_limit: 100_000,
+        ..ServerConfig::local()
+    };
+    let (running, base) = server(config).await;
+    let http = client();
+    let post = |body: Vec<u8>, content_type: &'static str| {
+        http.post(format!("{base}/v1/tangents"))
+            .header("content-type", content_type)
+            .body(body)
+            .send()
+    };
+    let mut bad_glb = fixture("Box/Box.glb");
+    bad_glb.truncate(40);
+    problem(
+        post(bad_glb, "model/gltf-binary").await.unwrap(),
+        400,
+        "malformed-glb",
+    )
+    .await;
+    problem(
+        post(b"{\"asset\":".to_vec(), "model/gltf+json")
+            .await
+            .unwrap(),
+        400,
+        "malformed-json",
+    )
+    .await;
+    problem(
+        post(vec![1, 2, 3], "image/png").await.unwrap(),
+        415,
+        "unsupported-media-type",
+    )
+    .await;
+    problem(
+        post(Vec::new(), "model/gltf-binary").await.unwrap(),
+        400,
+        "missing-file",
+    )
+    .await;
+    let body = problem(
+        post(fixture("Avocado/Avocado.gltf"), "model/gltf+json")
+            .await
+            .unwrap(),
+        422,
+        "missing-resource",
+    )
+    .await;
+    assert!(body["detail"].as_str().unwrap().contains("Avocado.bin"));
+    let draco = br#"{"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"]}"#;
+    let body = problem(
+        post(draco.to_vec(), "model/gltf+json").await.unwrap(),
+        422,
+        "draco-required",
+    )
+    .await;
+    assert!(
+        body["detail"]
+            .as_str()
+            .unwrap()
+            .contains("KHR_draco_mesh_compression")
+    );
+    problem(
+        post(fixture("concave_polygon/concave_polygon.obj"), "model/obj")
+            .await
+            .unwrap(),
+        422,
+        "obj-without-uvs",
+    )
+    .await;
+    problem(
+        post(vec![b'v'; 150_000], "model/obj").await.unwrap(),
+        413,
+        "body-too-large",
+    )
+    .await;
+    // Over the limit without a Content-Length: a chunked body is cut off at the limit.
+    let status = chunked_post(running.addr, "/v1/tangents", 20, 10_000).await;
+    assert!(status.starts_with("HTTP/1.1 413"), "{status}");
+    let response = http.get(format!("{base}/nowhere")).send().await.unwrap();
+    assert_eq!(response.status(), 404);
+    running.shutdown().await.unwrap();
+}
+
+/// Sends `count` chunks of `size` spaces with chunked transfer encoding; returns the status line.
+async fn chunked_post(addr: std::net::SocketAddr, path: &str, count: usize, size: usize) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut stream = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let head = format!(
+        "POST {path} HTTP/1.1\r\nHost: test\r\nContent-Type: model/obj\r\nTransfer-Encoding: chunked\r\nConnection: close\r\n\r\n"
+    );
+    stream.write_all(head.as_bytes()).await.unwrap();
+    let chunk = vec![b' '; size];
+    for _ in 0..count {
+        // The server may answer and close before all chunks are sent.
+        if stream
+            .write_all(format!("{size:x}\r\n").as_bytes())
+            .await
+            .is_err()
+            || stream.write_all(&chunk).await.is_err()
+            || stream.write_all(b"\r\n").await.is_err()
+        {
+            break;
+        }
+    }
+    let _ = stream.write_all(b"0\r\n\r\n").await;
+    let mut response = Vec::new();
+    let _ = stream.read_to_end(&mut response).await;
+    String::from_utf8_lossy(&response)
+        .lines()
+        .next()
+        .unwrap_or("")
+        .to_owned()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_queue_sheds_load_and_recovers() {
+    let config = ServerConfig {
+        concurrency: 1,
+        queue: 0,
+        ..ServerConfig::local()
+    };
+    let (running, base) = server(config).await;
+    let http = client();
+    let heavy = grid(400);
+    let requests = (0..4).map(|_| {
+        http.post(format!("{base}/v1/tangents"))
+            .body(heavy.clone())
+            .send()
+    });
+    let responses = futures_join_all(requests).await;
+    let statuses: Vec<u16> = responses
+        .iter()
+        .map(|r| r.as_ref().unwrap().status().as_u16())
+        .collect();
+    assert!(statuses.contains(&200), "{statuses:?}");
+    assert!(statuses.contains(&503), "{statuses:?}");
+    for response in responses.into_iter().flatten() {
+        if response.status() == 503 {
+            assert_eq!(response.headers()["retry-after"], "1");
+            problem(response, 503, "overloaded").await;
+        }
+    }
+    // Once the work is done, the server takes requests again.
+    let response = http
+        .post(format!("{base}/v1/tangents"))
+        .body(grid(4))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+
+    let metrics = http
+        .get(format!("{base}/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        metrics.contains("tspace_rejections_total{reason=\"overloaded\"}"),
+        "{metrics}"
+    );
+    assert!(metrics.contains("tspace_requests_total{route=\"/v1/tangents\",status=\"503\"}"));
+    assert!(metrics.contains("tspace_requests_total{route=\"/v1/tangents\",status=\"200\"}"));
+    assert!(
+        metrics
+            .contains("tspace_request_duration_seconds_bucket{route=\"/v1/tangents\",le=\"+Inf\"}")
+    );
+    let triangles: u64 = metrics
+        .lines()
+        .find_map(|l| l.strip_prefix("tspace_triangles_processed_total "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(triangles >= 2 * 400 * 400, "{triangles}");
+    assert!(metrics.contains("tspace_jobs_queued 0"));
+    running.shutdown().await.unwrap();
+}
+
+/// Awaits every future, in order (no extra dependency for `join_all`).
+async fn futures_join_all<F>(futures: impl Iterator<Item = F>) -> Vec<F::Output>
+where
+    F: std::future::Future + Send + 'static,
+    F::Output: Send + 'static,
+{
+    let handles: Vec<_> = futures.map(tokio::spawn).collect();
+    let mut out = Vec::new();
+    for handle in handles {
+        out.push(handle.await.unwrap());
+    }
+    out
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn slow_work_times_out_with_504() {
+    let config = ServerConfig {
+        timeout: Duration::from_millis(1),
+        ..ServerConfig::local()
+    };
+    let (running, base) = server(config).await;
+    let response = client()
+        .post(format!("{base}/v1/tangents"))
+        .body(grid(300))
+        .send()
+        .await
+        .unwrap();
+    problem(response, 504, "timeout").await;
+    running.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_drains_an_in_flight_request() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let body = grid(400);
+    let request = tokio::spawn(async move {
+        // The client (and its keep-alive connection) ends with this task.
+        let response = client()
+            .post(format!("{base}/v1/tangents"))
+            .body(body)
+            .send()
+            .await
+            .unwrap();
+        let status = response.status();
+        (status, response.bytes().await.unwrap().len())
+    });
+    // Let the request arrive, then shut down while it is in flight.
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let addr = running.addr;
+    let shutdown = tokio::spawn(running.shutdown());
+    let (status, length) = request.await.unwrap();
+    assert_eq!(status, 200);
+    assert!(length > 0);
+    shutdown.await.unwrap().unwrap();
+    // The listener is gone.
+    assert!(tokio::net::TcpStream::connect(addr).await.is_err());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn health_readiness_and_documentation() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let http = client();
+    assert_eq!(
+        http.get(format!("{base}/healthz"))
+            .send()
+            .await
+            .unwrap()
+            .status(),
+        200
+    );
+    assert_eq!(
+        http.get(format!("{base}/readyz"))
+            .send()
+            .await
+            .unwrap()
+            .status(),
+        200
+    );
+    let api: Value = http
+        .get(format!("{base}/openapi.json"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert!(api["paths"]["/v1/tangents"]["post"].is_object());
+    assert!(api["paths"]["/v1/analyze"]["post"].is_object());
+    let docs = http.get(format!("{base}/docs/")).send().await.unwrap();
+    assert_eq!(docs.status(), 200);
+    assert!(docs.text().await.unwrap().contains("swagger"));
+    let about = http
+        .get(format!("{base}/problems/draco-required"))
+        .send()
+        .await
+        .unwrap();
+    assert!(about.text().await.unwrap().contains("422"));
+    let response = http.get(format!("{base}/healthz")).send().await.unwrap();
+    assert!(response.headers().contains_key("x-request-id"));
+    running.shutdown().await.unwrap();
+}
