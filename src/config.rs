@@ -35,6 +35,9 @@ pub struct ServeArgs {
     /// Seconds a request may take before it is answered with 504.
     #[arg(long, env = "TSPACE_TIMEOUT", default_value_t = 120)]
     pub timeout: u64,
+    /// Seconds a client may take to send its request body; a slower one gets 408.
+    #[arg(long, env = "TSPACE_READ_TIMEOUT", default_value_t = 30)]
+    pub read_timeout: u64,
     /// Log format.
     #[arg(long, env = "TSPACE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     pub log_format: LogFormat,
@@ -49,6 +52,8 @@ pub struct ServerConfig {
     pub concurrency: usize,
     pub queue: usize,
     pub timeout: Duration,
+    /// How long a request body may take to arrive.
+    pub read_timeout: Duration,
     pub log_format: LogFormat,
 }
 
@@ -62,6 +67,7 @@ impl ServerConfig {
             concurrency: 2,
             queue: 4,
             timeout: Duration::from_secs(60),
+            read_timeout: Duration::from_secs(30),
             log_format: LogFormat::Text,
         }
     }
@@ -77,6 +83,7 @@ impl From<ServeArgs> for ServerConfig {
             concurrency: args.concurrency.unwrap_or(cores).max(1),
             queue: args.queue,
             timeout: Duration::from_secs(args.timeout.max(1)),
+            read_timeout: Duration::from_secs(args.read_timeout.max(1)),
             log_format: args.log_format,
         }
     }

@@ -440,6 +440,36 @@ async fn slow_work_times_out_with_504() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_trickled_upload_times_out_without_holding_a_worker() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let config = ServerConfig {
+        read_timeout: Duration::from_millis(300),
+        concurrency: 1,
+        queue: 0,
+        ..ServerConfig::local()
+    };
+    let (running, base) = server(config).await;
+    let mut slow = tokio::net::TcpStream::connect(running.addr).await.unwrap();
+    slow.write_all(b"POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/obj\r\nContent-Length: 1000\r\n\r\nv 0 0 0\n")
+        .await
+        .unwrap();
+    // While it trickles, the single worker still serves others.
+    let response = client()
+        .post(format!("{base}/v1/tangents"))
+        .body(grid(2))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let mut answer = Vec::new();
+    let _ = tokio::time::timeout(Duration::from_secs(5), slow.read_to_end(&mut answer)).await;
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    assert!(answer.contains("/problems/request-timeout"));
+    running.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn shutdown_drains_an_in_flight_request() {
     let (running, base) = server(ServerConfig::local()).await;
     let body = grid(400);

@@ -89,6 +89,11 @@ pub const CODES: &[(&str, u16, &str)] = &[
         "The scene has more triangles than allowed",
     ),
     ("too-large", 413, "The scene is over a limit"),
+    (
+        "request-timeout",
+        408,
+        "The request body arrived too slowly",
+    ),
     ("overloaded", 503, "The server is busy; retry shortly"),
     (
         "timeout",

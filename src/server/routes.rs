@@ -238,6 +238,25 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
     })
 }
 
+/// [`read_upload`] within the request timeout, so that a client trickling its body in
+/// (slowloris) holds a connection, never a worker, and not for long.
+async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Problem> {
+    match tokio::time::timeout(app.config.read_timeout, read_upload(app, request)).await {
+        Ok(upload) => upload,
+        Err(_) => {
+            app.metrics.reject("slow_upload");
+            Err(Problem::new(
+                StatusCode::REQUEST_TIMEOUT,
+                "request-timeout",
+                format!(
+                    "the request body did not arrive within {:.1} s",
+                    app.config.read_timeout.as_secs_f64()
+                ),
+            ))
+        }
+    }
+}
+
 /// Runs the scene on the pool, within the time limit.
 async fn run(app: &Arc<App>, upload: Upload, options: SceneOptions) -> Result<Processed, Problem> {
     let job = move || {
@@ -365,7 +384,7 @@ pub async fn tangents(
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
     let multipart = wants_multipart(request.headers());
-    let upload = read_upload(&app, request).await?;
+    let upload = read_upload_in_time(&app, request).await?;
     let processed = run(&app, upload, scene_options(&app, &query, true)).await?;
     let bytes = processed.bytes.unwrap_or_default();
     let scene_type = match query.format {
@@ -429,7 +448,7 @@ pub async fn analyze(
     request: Request,
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
-    let upload = read_upload(&app, request).await?;
+    let upload = read_upload_in_time(&app, request).await?;
     let processed = run(&app, upload, scene_options(&app, &query, false)).await?;
     let mut response = Response::new(Body::from(processed.report.to_json_pretty()));
     let (name, value) = content_type("application/json");
