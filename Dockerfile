@@ -11,7 +11,7 @@ COPY Cargo.toml Cargo.lock ./
 RUN mkdir -p src benches \
     && echo 'fn main() {}' > src/main.rs \
     && touch src/lib.rs \
-    && echo 'fn main() {}' > benches/tangents.rs \
+    && for bench in tangents http; do echo 'fn main() {}' > benches/$bench.rs; done \
     && cargo build --release --locked --bin tspace \
     && rm -rf src
 
