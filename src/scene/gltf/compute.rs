@@ -70,7 +70,12 @@ impl Computed {
 }
 
 pub fn accessor_error(error: AccessorError) -> SceneError {
-    match error {
+    // Decoding errors come wrapped in the accessor's path; the limit is the innermost cause.
+    let mut cause = &error;
+    while let AccessorError::In { error: inner, .. } = cause {
+        cause = inner;
+    }
+    match cause {
         AccessorError::TooManyElements { .. } => {
             SceneError::too_large("too-many-vertices", error.to_string())
         }

@@ -1,0 +1,303 @@
+//! The bad-input suite: hostile files, each sent through the HTTP API and (where it is a file) the
+//! command line, each expecting a specific problem code and a 4xx status (or, for inputs that are
+//! odd but legal, a 200 with the oddity reported). Never a 5xx, never a panic, never a file
+//! opened because an upload named it.
+
+#[allow(unused_imports)]
+mod common;
+
+use common::scene::{Builder, normal_mapped, texture_stub};
+use reqwest::multipart::{Form, Part};
+use serde_json::{Value, json};
+use std::path::Path;
+use std::process::Command;
+use tspace::config::ServerConfig;
+
+fn fixture(path: &str) -> Vec<u8> {
+    std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures")
+            .join(path),
+    )
+    .unwrap()
+}
+
+/// How an input is sent.
+enum Body {
+    Raw(&'static str, Vec<u8>),
+    /// Multipart parts: (field, file name, bytes).
+    Parts(Vec<(&'static str, &'static str, Vec<u8>)>),
+}
+
+struct Case {
+    name: &'static str,
+    body: Body,
+    status: u16,
+    /// The problem code, or for a 200 a substring the report must contain.
+    expect: &'static str,
+}
+
+fn glb_header(total: u32) -> Vec<u8> {
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend(total.to_le_bytes());
+    out
+}
+
+/// A GLB whose JSON is `json` and whose BIN is `bin`.
+fn glb(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let text = serde_json::to_vec(json).unwrap();
+    tspace::scene::gltf::glb::write(&text, (!bin.is_empty()).then_some(bin), &[]).unwrap()
+}
+
+/// A valid normal-mapped quad whose document `edit` then breaks.
+fn quad(edit: impl FnOnce(&mut Value)) -> Vec<u8> {
+    let mut b = Builder::default();
+    let position = b.floats(
+        &[0., 0., 0., 1., 0., 0., 1., 1., 0., 0., 1., 0.],
+        "VEC3",
+        true,
+    );
+    let normal = b.floats(
+        &[0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.],
+        "VEC3",
+        false,
+    );
+    let uv = b.floats(&[0., 0., 1., 0., 1., 1., 0., 1.], "VEC2", false);
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv}, "indices": indices, "material": 0}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    let mut doc = b.document(doc);
+    edit(&mut doc);
+    glb(&doc, &b.bin)
+}
+
+fn gltf_json(doc: Value) -> Body {
+    Body::Raw("model/gltf+json", serde_json::to_vec(&doc).unwrap())
+}
+
+fn with_buffer_uri(uri: &'static str) -> Body {
+    gltf_json(json!({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 16, "uri": uri}]}))
+}
+
+fn obj(text: &str) -> Body {
+    Body::Raw("model/obj", text.as_bytes().to_vec())
+}
+
+fn cases() -> Vec<Case> {
+    let case = |name, body, status, expect| Case {
+        name,
+        body,
+        status,
+        expect,
+    };
+    let mut truncated = fixture("Box/Box.glb");
+    truncated.truncate(truncated.len() / 2);
+    let mut past_end = fixture("Box/Box.glb");
+    past_end[12..16].copy_from_slice(&1_000_000u32.to_le_bytes());
+    let mut overflow = fixture("Box/Box.glb");
+    overflow[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+    let deep = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000));
+    let mut not_utf8 = glb_header(0);
+    not_utf8.extend(4u32.to_le_bytes());
+    not_utf8.extend(b"JSON");
+    not_utf8.extend([0xFF, 0xFE, 0x20, 0x20]);
+    let total = not_utf8.len() as u32;
+    not_utf8[8..12].copy_from_slice(&total.to_le_bytes());
+    let many_primitives = {
+        let mut b = Builder::default();
+        let position = b.floats(&[0., 0., 0., 1., 0., 0., 1., 1., 0.], "VEC3", true);
+        let uv = b.floats(&[0., 0., 1., 0., 1., 1.], "VEC2", false);
+        let primitive =
+            json!({"attributes": {"POSITION": position, "TEXCOORD_0": uv}, "material": 0});
+        let mut doc = json!({
+            "meshes": [{"primitives": vec![primitive; 100_000]}],
+            "materials": normal_mapped(0),
+        });
+        texture_stub(&mut doc);
+        glb(&b.document(doc), &b.bin)
+    };
+
+    vec![
+        case("empty body", Body::Raw("model/gltf-binary", vec![]), 400, "missing-file"),
+        case("wrong magic", Body::Raw("model/gltf-binary", b"glTX\x02\0\0\0\x0c\0\0\0".to_vec()), 400, "malformed-glb"),
+        case("truncated GLB", Body::Raw("model/gltf-binary", truncated), 400, "malformed-glb"),
+        case("chunk length past the end", Body::Raw("model/gltf-binary", past_end), 400, "malformed-glb"),
+        case("chunk length overflowing u32", Body::Raw("model/gltf-binary", overflow), 400, "malformed-glb"),
+        case("GLB header only", Body::Raw("model/gltf-binary", glb_header(12)), 400, "malformed-glb"),
+        case("JSON chunk not UTF-8", Body::Raw("model/gltf-binary", not_utf8), 400, "malformed-json"),
+        case("JSON nested 100 000 deep", Body::Raw("model/gltf+json", deep.into_bytes()), 400, "malformed-json"),
+        case("JSON with a duplicate key", Body::Raw("model/gltf+json", br#"{"asset":{"version":"2.0"},"asset":{}}"#.to_vec()), 400, "malformed-json"),
+        case("JSON array at the top", Body::Raw("model/gltf+json", b"[]".to_vec()), 400, "malformed-gltf"),
+        case("glTF 1.0", gltf_json(json!({"asset": {"version": "1.0"}})), 422, "unsupported-version"),
+        case("byteLength 1e999", Body::Raw("model/gltf+json", br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":1e999}]}"#.to_vec()), 400, "malformed-gltf"),
+        case("accessor count 2^31 over 12 bytes", Body::Raw("model/gltf-binary", quad(|d| d["accessors"][0]["count"] = json!(1u64 << 31))), 413, "too-many-vertices"),
+        case("accessor count 2^31 non-indexed", Body::Raw("model/gltf-binary", quad(|d| {
+            d["accessors"][0]["count"] = json!(1u64 << 31);
+            d["meshes"][0]["primitives"][0].as_object_mut().unwrap().remove("indices");
+        })), 413, "too-many-triangles"),
+        case("byteOffset + stride overflow", Body::Raw("model/gltf-binary", quad(|d| {
+            d["accessors"][0]["byteOffset"] = json!(u64::MAX - 3);
+        })), 400, "invalid-accessor"),
+        case("stride of 2^40", Body::Raw("model/gltf-binary", quad(|d| d["bufferViews"][0]["byteStride"] = json!(1u64 << 40))), 400, "invalid-accessor"),
+        case("indices out of range", Body::Raw("model/gltf-binary", quad(|d| d["accessors"][3]["count"] = json!(6)).into_iter().collect::<Vec<u8>>().pipe_indices_out_of_range()), 400, "invalid-primitive"),
+        case("float indices", Body::Raw("model/gltf-binary", quad(|d| d["accessors"][3]["componentType"] = json!(5126))), 400, "invalid-accessor"),
+        case("unknown componentType", Body::Raw("model/gltf-binary", quad(|d| d["accessors"][0]["componentType"] = json!(9999))), 400, "invalid-accessor"),
+        case("bufferView past its buffer", Body::Raw("model/gltf-binary", quad(|d| d["bufferViews"][0]["byteOffset"] = json!(1_000_000))), 400, "invalid-accessor"),
+        case("attribute names a missing accessor", Body::Raw("model/gltf-binary", quad(|d| d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(99))), 400, "invalid-accessor"),
+        case("sparse count beyond the count", Body::Raw("model/gltf-binary", quad(|d| {
+            d["accessors"][2]["sparse"] = json!({"count": 5, "indices": {"bufferView": 3, "componentType": 5123}, "values": {"bufferView": 2}});
+        })), 400, "invalid-accessor"),
+        case("not whole triangles", Body::Raw("model/gltf-binary", quad(|d| {
+            d["meshes"][0]["primitives"][0].as_object_mut().unwrap().remove("indices");
+        })), 400, "invalid-primitive"),
+        case("buffer 0 without BIN chunk", Body::Raw("model/gltf-binary", glb(&json!({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 4}]}), &[])), 400, "malformed-glb"),
+        case("invalid base64 in a data URI", with_buffer_uri("data:application/octet-stream;base64,AA!A"), 400, "malformed-uri"),
+        case("data URI shorter than it claims", gltf_json(json!({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 1_000_000_000u64, "uri": "data:application/octet-stream;base64,AAAA"}]})), 400, "buffer-too-short"),
+        case("buffer claiming a terabyte", gltf_json(json!({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 1u64 << 40, "uri": "data:application/octet-stream;base64,AAAA"}]})), 413, "buffer-too-large"),
+        case("buffer URI ../../etc/passwd", with_buffer_uri("../../etc/passwd"), 422, "missing-resource"),
+        case("buffer URI /etc/passwd", with_buffer_uri("/etc/passwd"), 422, "missing-resource"),
+        case("buffer URI file:///etc/passwd", with_buffer_uri("file:///etc/passwd"), 422, "missing-resource"),
+        case("buffer URI http://127.0.0.1:1/x", with_buffer_uri("http://127.0.0.1:1/x"), 422, "missing-resource"),
+        case("buffer URI with a bad escape", with_buffer_uri("%zz.bin"), 422, "missing-resource"),
+        case("required Draco", gltf_json(json!({"asset": {"version": "2.0"}, "extensionsRequired": ["KHR_draco_mesh_compression"], "extensionsUsed": ["KHR_draco_mesh_compression"]})), 422, "draco-required"),
+        case("meshopt data that is garbage", Body::Raw("model/gltf-binary", quad(|d| {
+            d["bufferViews"][0]["extensions"] = json!({"EXT_meshopt_compression": {"buffer": 0, "byteLength": 8, "byteStride": 12, "count": 4, "mode": "ATTRIBUTES"}});
+            d["buffers"].as_array_mut().unwrap().push(json!({"byteLength": 48}));
+            d["bufferViews"][0]["buffer"] = json!(1);
+            d["extensionsUsed"] = json!(["EXT_meshopt_compression"]);
+            d["extensionsRequired"] = json!(["EXT_meshopt_compression"]);
+        })), 400, "malformed-meshopt"),
+        case("OBJ index 2^40", obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 1099511627776\n"), 400, "malformed-obj"),
+        case("OBJ index 0", obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"), 400, "malformed-obj"),
+        case("OBJ index past the end", obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n"), 400, "malformed-obj"),
+        case("OBJ negative index before the start", obj("v 0 0 0\nf -1 -2 -3\n"), 400, "malformed-obj"),
+        case("OBJ without texture coordinates", obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), 422, "obj-without-uvs"),
+        case("OBJ of only NaN positions", obj("v nan nan nan\nv nan nan nan\nv nan nan nan\nvt 0 0\nf 1/1 2/1 3/1\n"), 422, "obj-not-convertible"),
+        case("OBJ with NaN and Inf among good positions", obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan inf 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/1\n"), 200, "non_finite_triangles"),
+        case("MTL texture path escaping upward", Body::Parts(vec![
+            ("file", "a.obj", b"mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n".to_vec()),
+            ("mtl", "a.mtl", b"newmtl m\nnorm ../../../etc/passwd\n".to_vec()),
+        ]), 200, "passwd"),
+        case("multipart with a duplicate part", Body::Parts(vec![
+            ("file", "Avocado.gltf", fixture("Avocado/Avocado.gltf")),
+            ("a", "Avocado.bin", fixture("Avocado/Avocado.bin")),
+            ("b", "Avocado.bin", fixture("Avocado/Avocado.bin")),
+        ]), 400, "malformed-multipart"),
+        case("multipart without the buffer", Body::Parts(vec![("file", "Avocado.gltf", fixture("Avocado/Avocado.gltf"))]), 422, "missing-resource"),
+        case("a .gltf declared but a GLB sent", Body::Raw("model/gltf+json", fixture("Box/Box.glb")), 400, "malformed-gltf"),
+        case("a PNG", Body::Raw("image/png", b"\x89PNG\r\n\x1a\n".to_vec()), 415, "unsupported-media-type"),
+        case("binary garbage", Body::Raw("application/octet-stream", vec![0, 159, 146, 150, 0, 1]), 415, "unsupported-media-type"),
+        case("only degenerate triangles", obj("v 0 0 0\nv 0 0 0\nv 0 0 0\nvt 0 0\nf 1/1 2/1 3/1\nf 1/1 1/1 2/1\n"), 200, "duplicate_position_triangles"),
+        case("100 000 tiny primitives", Body::Raw("model/gltf-binary", many_primitives), 200, "\"computations\": 1"),
+    ]
+}
+
+/// Writing an out-of-range index into the quad's index buffer (the last index becomes 9).
+trait OutOfRange {
+    fn pipe_indices_out_of_range(self) -> Vec<u8>;
+}
+
+impl OutOfRange for Vec<u8> {
+    fn pipe_indices_out_of_range(mut self) -> Vec<u8> {
+        // The index view is the last data in BIN: six u16, then padding; find [0,2,3] at its end.
+        let pattern = [0u8, 0, 2, 0, 3, 0];
+        if let Some(at) = self.windows(6).rposition(|w| w == pattern) {
+            self[at + 4] = 9;
+        }
+        self
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_hostile_input_gets_its_answer_over_http() {
+    let cases = cases();
+    assert!(cases.len() >= 40, "{} cases", cases.len());
+    let running = tspace::server::start(ServerConfig::local()).await.unwrap();
+    let url = format!("http://{}/v1/tangents", running.addr);
+    let http = reqwest::Client::new();
+    let mut failures = Vec::new();
+    for case in &cases {
+        let request = match &case.body {
+            Body::Raw(content_type, bytes) => http
+                .post(&url)
+                .header("content-type", *content_type)
+                .body(bytes.clone()),
+            Body::Parts(parts) => {
+                let mut form = Form::new();
+                for (field, name, bytes) in parts {
+                    form = form.part(*field, Part::bytes(bytes.clone()).file_name(*name));
+                }
+                http.post(&url).multipart(form)
+            }
+        };
+        let request = request.header("accept", "multipart/mixed");
+        let response = request.send().await.unwrap();
+        let status = response.status().as_u16();
+        let text = String::from_utf8_lossy(&response.bytes().await.unwrap()).into_owned();
+        let ok = status == case.status
+            && if status == 200 {
+                text.contains(case.expect)
+            } else {
+                text.contains(&format!("\"code\":\"{}\"", case.expect))
+            };
+        if !ok {
+            failures.push(format!(
+                "{}: expected {} {}, got {status} {}",
+                case.name,
+                case.status,
+                case.expect,
+                text.chars().take(300).collect::<String>()
+            ));
+        }
+        assert!(status < 500, "{}: {status}", case.name);
+    }
+    // The server is still there.
+    let health = http
+        .get(format!("http://{}/healthz", running.addr))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(health.status(), 200);
+    running.shutdown().await.unwrap();
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn every_hostile_file_gets_exit_code_3_or_0_on_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("tspace-hostile-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut failures = Vec::new();
+    for (i, case) in cases().into_iter().enumerate() {
+        let (extension, bytes) = match case.body {
+            Body::Raw("model/gltf-binary", bytes) => ("glb", bytes),
+            Body::Raw("model/gltf+json", bytes) => ("gltf", bytes),
+            Body::Raw("model/obj", bytes) => ("obj", bytes),
+            _ => continue,
+        };
+        let input = dir.join(format!("case{i}.{extension}"));
+        std::fs::write(&input, &bytes).unwrap();
+        let output = Command::new(env!("CARGO_BIN_EXE_tspace"))
+            .arg("process")
+            .arg(&input)
+            .arg("-o")
+            .arg(dir.join(format!("out{i}.glb")))
+            .output()
+            .unwrap();
+        let code = output.status.code();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        let expected = if case.status == 200 { 0 } else { 3 };
+        let one_line = stderr.lines().filter(|l| l.contains(": ")).count() >= 1;
+        if code != Some(expected) || !one_line || stderr.contains("panicked") {
+            failures.push(format!("{}: exit {code:?}, stderr {stderr}", case.name));
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(failures.is_empty(), "{failures:#?}");
+}
