@@ -308,6 +308,10 @@ async fn every_error_is_a_problem() {
     assert!(status.starts_with("HTTP/1.1 413"), "{status}");
     let response = http.get(format!("{base}/nowhere")).send().await.unwrap();
     assert_eq!(response.status(), 404);
+    assert_eq!(response.headers()["content-type"], "application/problem+json");
+    let response = http.get(format!("{base}/v1/tangents")).send().await.unwrap();
+    assert_eq!(response.status(), 405);
+    assert_eq!(response.headers()["content-type"], "application/problem+json");
     running.shutdown().await.unwrap();
 }
 

@@ -101,9 +101,14 @@ pub fn process<'a>(
 }
 
 fn obj_error(error: obj::ObjError) -> SceneError {
-    match error.kind {
-        ObjErrorKind::LimitExceeded { .. } => {
-            SceneError::too_large("too-large", format!("OBJ {error}"))
+    match &error.kind {
+        ObjErrorKind::LimitExceeded { what, .. } => {
+            let code = if what.contains("triangle") {
+                "too-many-triangles"
+            } else {
+                "too-many-vertices"
+            };
+            SceneError::too_large(code, format!("OBJ {error}"))
         }
         _ => SceneError::malformed("malformed-obj", format!("OBJ {error}")),
     }

@@ -83,6 +83,7 @@ pub struct PrimitiveReport {
     /// shares, when it is not this one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub shared_with: Option<[usize; 2]>,
+    /// The core's findings; absent when `shared_with` is set (they are on that primitive).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub diagnostics: Option<DiagnosticsReport>,
     #[serde(skip_serializing_if = "Option::is_none")]

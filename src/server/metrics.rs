@@ -104,7 +104,7 @@ impl Metrics {
             (
                 "tspace_triangles_processed_total",
                 "counter",
-                "Triangles given tangents (distinct computations).",
+                "Triangles processed (generated or audited, analyses included; shared geometry once).",
                 self.triangles.load(Ordering::Relaxed),
             ),
             (

@@ -100,7 +100,8 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/problems/{code}", axum::routing::get(routes::problem_type))
         .merge(SwaggerUi::new("/docs").url("/openapi.json", routes::ApiDoc::openapi()))
         .fallback(routes::not_found)
-        .route_layer(middleware::from_fn_with_state(
+        .method_not_allowed_fallback(routes::method_not_allowed)
+        .layer(middleware::from_fn_with_state(
             Arc::clone(&app),
             record_metrics,
         ))
@@ -109,14 +110,21 @@ pub fn router(app: Arc<App>) -> Router {
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(PropagateRequestIdLayer::new(REQUEST_ID))
         .layer(
-            TraceLayer::new_for_http().make_span_with(|request: &axum::http::Request<_>| {
-                let id = request
-                    .headers()
-                    .get(REQUEST_ID)
-                    .and_then(|v| v.to_str().ok())
-                    .unwrap_or("-");
-                tracing::info_span!("request", id = %id, method = %request.method(), uri = %request.uri())
-            }),
+            TraceLayer::new_for_http()
+                .make_span_with(|request: &axum::http::Request<_>| {
+                    let id = request
+                        .headers()
+                        .get(REQUEST_ID)
+                        .and_then(|v| v.to_str().ok())
+                        .unwrap_or("-");
+                    tracing::info_span!("request", id = %id, method = %request.method(), uri = %request.uri())
+                })
+                // One line per request at INFO (status and latency); failures at ERROR.
+                .on_response(
+                    tower_http::trace::DefaultOnResponse::new()
+                        .level(tracing::Level::INFO)
+                        .latency_unit(tower_http::LatencyUnit::Millis),
+                ),
         )
         .layer(SetRequestIdLayer::new(REQUEST_ID, Counter::default()))
 }
@@ -180,7 +188,11 @@ pub async fn start(config: ServerConfig) -> std::io::Result<Running> {
 fn init_logging(format: LogFormat) {
     let filter = tracing_subscriber::EnvFilter::try_from_env("TSPACE_LOG")
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,tower_http=info"));
-    let builder = tracing_subscriber::fmt().with_env_filter(filter);
+    // Colour codes only for a terminal: in files, pipes and container logs they are noise.
+    let ansi = std::io::IsTerminal::is_terminal(&std::io::stdout());
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(ansi);
     // A second initialisation (tests) is harmless and ignored.
     let _ = match format {
         LogFormat::Text => builder.try_init(),

@@ -499,6 +499,17 @@ pub async fn problem_type(Path(code): Path<String>) -> Response {
     }
 }
 
+pub async fn method_not_allowed() -> Problem {
+    Problem {
+        type_uri: "about:blank".into(),
+        title: "Method Not Allowed",
+        status: 405,
+        detail: "this route does not take that method; see /docs".into(),
+        code: "method-not-allowed",
+        retry_after: None,
+    }
+}
+
 pub async fn not_found() -> Problem {
     Problem {
         type_uri: "about:blank".into(),

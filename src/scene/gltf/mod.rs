@@ -308,7 +308,11 @@ pub fn process_with<'a>(
                         Err(problem) => entry.notes.push(format!("audit not possible: {problem}")),
                     }
                 }
-                entry.diagnostics = Some((&c.tangents.diagnostics).into());
+                // Primitives that share a computation share its diagnostics: the report
+                // gives them once, on the first, or a scene of many copies would grow huge.
+                if entry.shared_with.is_none() {
+                    entry.diagnostics = Some((&c.tangents.diagnostics).into());
+                }
             }
             (Action::Generate, Some((j, c))) => {
                 report.summary.generated += 1;
@@ -317,7 +321,11 @@ pub fn process_with<'a>(
                 } else {
                     "generated"
                 };
-                entry.diagnostics = Some((&c.tangents.diagnostics).into());
+                // Primitives that share a computation share its diagnostics: the report
+                // gives them once, on the first, or a scene of many copies would grow huge.
+                if entry.shared_with.is_none() {
+                    entry.diagnostics = Some((&c.tangents.diagnostics).into());
+                }
                 let Some(key) = &plan.key else { continue };
                 let Some(primitive) = primitive_node(root, plan.mesh, plan.primitive) else {
                     continue;

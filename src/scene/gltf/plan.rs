@@ -32,9 +32,11 @@ pub enum SkipReason {
     /// It has TANGENT and `overwrite` was not asked for, and its material does not use it.
     HasTangents,
     NoPositions,
-    /// The texture-coordinate set the material names (or 0) is not there.
+    /// The texture-coordinate set the material names (or 0) is not there. `normal_map` says
+    /// whether a material asked for it (rather than `all`).
     NoTexcoords {
         set: u32,
+        normal_map: bool,
     },
 }
 
@@ -64,8 +66,17 @@ impl SkipReason {
                 "it already has TANGENT and its material does not use it".into()
             }
             SkipReason::NoPositions => "it has no POSITION attribute".into(),
-            SkipReason::NoTexcoords { set } => format!(
+            SkipReason::NoTexcoords {
+                set,
+                normal_map: true,
+            } => format!(
                 "its normal map reads TEXCOORD_{set}, which the primitive does not have; ask for the axis method to get tangents without texture coordinates"
+            ),
+            SkipReason::NoTexcoords {
+                set,
+                normal_map: false,
+            } => format!(
+                "it has no TEXCOORD_{set}, which tangents follow; ask for the axis method to get tangents without texture coordinates"
             ),
         }
     }
@@ -281,9 +292,10 @@ pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
                     Some(_) => Action::Audit,
                     None => Action::Skip(SkipReason::HasTangents),
                 },
-                _ if texcoord.is_none() && !options.axis => {
-                    Action::Skip(SkipReason::NoTexcoords { set: usage.set })
-                }
+                _ if texcoord.is_none() && !options.axis => Action::Skip(SkipReason::NoTexcoords {
+                    set: usage.set,
+                    normal_map: usage.uses.is_some(),
+                }),
                 _ => Action::Generate,
             };
             let key = match (&action, topology, position) {
@@ -376,7 +388,10 @@ mod tests {
                 Action::Skip(SkipReason::NoMaterial),
                 Action::Skip(SkipReason::NoNormalMap),
                 Action::Generate,
-                Action::Skip(SkipReason::NoTexcoords { set: 1 }),
+                Action::Skip(SkipReason::NoTexcoords {
+                    set: 1,
+                    normal_map: true
+                }),
                 Action::Generate,
                 Action::Skip(SkipReason::NotTriangles { mode: 1 }),
                 Action::Audit,
