@@ -60,6 +60,8 @@ pub struct Dropped {
     pub kept_because: Option<String>,
 }
 
+/// Boxed parts keep an entry small when they are absent: a scene may have a hundred thousand
+/// primitives.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct PrimitiveReport {
     pub mesh: usize,
@@ -85,11 +87,11 @@ pub struct PrimitiveReport {
     pub shared_with: Option<[usize; 2]>,
     /// The core's findings; absent when `shared_with` is set (they are on that primitive).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub diagnostics: Option<DiagnosticsReport>,
+    pub diagnostics: Option<Box<DiagnosticsReport>>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub morph_targets: Option<MorphReport>,
+    pub morph_targets: Option<Box<MorphReport>>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub audit: Option<Audit>,
+    pub audit: Option<Box<Audit>>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
 }

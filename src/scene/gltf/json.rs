@@ -488,6 +488,9 @@ impl Parser<'_> {
                 Some(b']') => {
                     self.pos += 1;
                     self.depth -= 1;
+                    // Growth leaves up to half of a vector unused; a scene of many small
+                    // objects would otherwise carry that slack in every one of them.
+                    elements.shrink_to_fit();
                     return Ok(Kind::Array(elements));
                 }
                 _ => return Err(self.unexpected("',' or ']'")),
@@ -537,6 +540,7 @@ impl Parser<'_> {
                     self.pos += 1;
                     self.depth -= 1;
                     check_unique_keys(&members)?;
+                    members.shrink_to_fit();
                     return Ok(Kind::Object(members));
                 }
                 _ => return Err(self.unexpected("',' or '}'")),

@@ -256,6 +256,7 @@ pub fn process_with<'a>(
         all: options.all,
         ..Report::default()
     };
+    report.primitives.reserve_exact(plans.len());
     let mut changes = Changes::default();
     let mut job_refs: HashMap<usize, JobRefs> = HashMap::new();
     let mut remapped: HashMap<(usize, usize), Ref> = HashMap::new();
@@ -303,7 +304,7 @@ pub fn process_with<'a>(
                             if audit.verdict != "matches" {
                                 report.summary.audits_disagreeing += 1;
                             }
-                            entry.audit = Some(audit);
+                            entry.audit = Some(Box::new(audit));
                         }
                         Err(problem) => entry.notes.push(format!("audit not possible: {problem}")),
                     }
@@ -311,7 +312,7 @@ pub fn process_with<'a>(
                 // Primitives that share a computation share its diagnostics: the report
                 // gives them once, on the first, or a scene of many copies would grow huge.
                 if entry.shared_with.is_none() {
-                    entry.diagnostics = Some((&c.tangents.diagnostics).into());
+                    entry.diagnostics = Some(Box::new((&c.tangents.diagnostics).into()));
                 }
             }
             (Action::Generate, Some((j, c))) => {
@@ -324,7 +325,7 @@ pub fn process_with<'a>(
                 // Primitives that share a computation share its diagnostics: the report
                 // gives them once, on the first, or a scene of many copies would grow huge.
                 if entry.shared_with.is_none() {
-                    entry.diagnostics = Some((&c.tangents.diagnostics).into());
+                    entry.diagnostics = Some(Box::new((&c.tangents.diagnostics).into()));
                 }
                 let Some(key) = &plan.key else { continue };
                 let Some(primitive) = primitive_node(root, plan.mesh, plan.primitive) else {
@@ -343,12 +344,12 @@ pub fn process_with<'a>(
                     &mut remapped,
                 )?;
                 if !key.targets.is_empty() {
-                    entry.morph_targets = Some(MorphReport {
+                    entry.morph_targets = Some(Box::new(MorphReport {
                         targets: key.targets.len() as u64,
                         with_tangent_deltas: c.target_deltas.iter().filter(|d| d.is_some()).count()
                             as u64,
                         handedness_changes: c.morph_handedness_changes,
-                    });
+                    }));
                 }
                 changes.primitives.insert((plan.mesh, plan.primitive), edit);
             }
