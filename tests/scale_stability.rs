@@ -37,6 +37,8 @@ const CORPUS: &[&str] = &[
     "obj_spot/spot_triangulated.obj",
 ];
 
+type Transform = fn([f32; 3]) -> [f32; 3];
+
 fn load(path: &Path) -> Vec<Primitive> {
     let result = if path.extension().is_some_and(|e| e == "obj") {
         load_obj(path).map(|p| vec![p])
@@ -110,7 +112,7 @@ fn tangents_survive_extreme_scales_and_offsets() {
             let base = tangents(&p, &p.positions);
             check_valid(&name, "as is", &p, &base);
             let mut worst = Vec::new();
-            let transforms: [(&str, fn([f32; 3]) -> [f32; 3]); 3] = [
+            let transforms: [(&str, Transform); 3] = [
                 ("x1e-6", |v| [v[0] * 1e-6, v[1] * 1e-6, v[2] * 1e-6]),
                 ("x1e6", |v| [v[0] * 1e6, v[1] * 1e6, v[2] * 1e6]),
                 ("+1e6", |v| [v[0] + 1e6, v[1] + 1e6, v[2] + 1e6]),
