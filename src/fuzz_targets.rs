@@ -1,0 +1,583 @@
+//! The bodies of the fuzz targets (`fuzz/fuzz_targets/*.rs` are two-line wrappers around these),
+//! kept in the library so that `tests/fuzz_replay.rs` replays the saved corpus through exactly the
+//! code the fuzzers ran, on stable and in the normal test suite.
+//!
+//! Every function takes arbitrary bytes and returns nothing: errors are the expected outcome for
+//! most inputs and are simply dropped. A panic (an `assert!` included) is the bug signal.
+//!
+//! - [`glb`]: the GLB container (split, rewritten byte for byte), then the whole scene path.
+//! - [`gltf`]: the JSON parser, every accessor decoded, then the whole scene path, for GLB and
+//!   `.gltf` input alike, with no external resources.
+//! - [`obj`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte.
+//! - [`parts`]: a multipart upload, as length-prefixed records (see [`parts`]).
+//! - [`core`]: arbitrary geometry straight into [`crate::tangent::generate`], with the core's
+//!   invariants checked on every successful result.
+//!
+//! The scene options (method, overwrite, all, output format, normal mode, write) of [`glb`],
+//! [`gltf`] and [`parts`] come from a cheap hash of the input, so that every mutation may also
+//! change them and the replay stays deterministic.
+
+use crate::scene::gltf::accessor::{self, ElementType};
+use crate::scene::gltf::glb as glb_container;
+use crate::scene::gltf::load::{self, LoadLimits, NoResources};
+use crate::scene::gltf::write::OutputFormat;
+use crate::scene::gltf::{self as scene_gltf, SceneLimits, SceneOptions};
+use crate::scene::input::{self, InputKind};
+use crate::scene::uri::PartSet;
+use crate::tangent::{
+    self, CoreError, MeshInput, Method, NormalMode, Options, Tangents, UvOrigin, Weighting,
+};
+
+/// Small enough that one input stays fast, large enough for every fixture-sized seed.
+const LIMITS: SceneLimits = SceneLimits {
+    max_triangles: 1 << 16,
+    max_vertices: 1 << 16,
+    max_buffer_bytes: 1 << 20,
+};
+
+/// Elements decoded per accessor by [`gltf`].
+const MAX_ELEMENTS: usize = 1 << 16;
+
+fn hash(data: &[u8]) -> u32 {
+    // FNV-1a: any single-byte change moves it.
+    data.iter().fold(0x811C_9DC5u32, |h, &b| {
+        (h ^ u32::from(b)).wrapping_mul(0x0100_0193)
+    })
+}
+
+/// Scene options chosen by the input's hash.
+fn scene_options(data: &[u8]) -> SceneOptions {
+    let h = hash(data);
+    SceneOptions {
+        method: match h % 3 {
+            0 => Method::MikkTSpace,
+            1 => Method::Fast,
+            _ => Method::Axis,
+        },
+        overwrite: h & 0x10 != 0,
+        all: h & 0x20 != 0,
+        format: if h & 0x40 != 0 {
+            OutputFormat::GltfEmbedded
+        } else {
+            OutputFormat::Glb
+        },
+        normal_mode: if h & 0x80 != 0 {
+            NormalMode::SmoothByAngle {
+                crease_degrees: 60.0,
+            }
+        } else {
+            NormalMode::Flat
+        },
+        // Mostly written, sometimes only analysed.
+        write: h & 0x300 != 0x300,
+        limits: LIMITS,
+    }
+}
+
+/// What every successful scene run must give: a written scene that loads again.
+fn check_processed(processed: &scene_gltf::Processed) {
+    if let Some(bytes) = &processed.bytes {
+        if let Err(e) = load::load(
+            bytes,
+            &NoResources,
+            &LoadLimits {
+                max_buffer_bytes: usize::MAX,
+            },
+        ) {
+            panic!("the written scene does not load again: {e:?}");
+        }
+    }
+}
+
+fn run_scene<'a>(
+    kind: InputKind,
+    main: &'a [u8],
+    resources: &dyn load::Resources<'a>,
+    options: &SceneOptions,
+) {
+    if let Ok(processed) = input::process(kind, main, resources, options) {
+        check_processed(&processed);
+    }
+}
+
+/// The GLB container: a file that splits must be rewritten byte for byte from its chunks (the
+/// chunks of a valid GLB are already padded, so the writer adds nothing); then the whole scene
+/// path, as a GLB.
+pub fn glb(data: &[u8]) {
+    if let Ok(parsed) = glb_container::parse(data) {
+        let rewritten = glb_container::write(parsed.json, parsed.bin, &parsed.other_chunks)
+            .expect("a parsed GLB fits in a GLB");
+        assert!(
+            rewritten == data,
+            "a parsed GLB is not rewritten byte for byte"
+        );
+    }
+    run_scene(InputKind::Glb, data, &NoResources, &scene_options(data));
+}
+
+/// The JSON parser and every accessor (up to 64) decoded in every way that applies, then the
+/// whole scene path with no resources; GLB (by its magic) and `.gltf` input alike.
+pub fn gltf(data: &[u8]) {
+    if let Ok(loaded) = load::load(
+        data,
+        &NoResources,
+        &LoadLimits {
+            max_buffer_bytes: LIMITS.max_buffer_bytes,
+        },
+    ) {
+        let root = loaded.doc.root();
+        let buffers = loaded.buffer_slices();
+        let count = root
+            .get("accessors")
+            .and_then(|a| a.as_array())
+            .map_or(0, <[_]>::len);
+        for index in 0..count.min(64) {
+            let Ok(described) = accessor::accessor_from_json(root, index, &buffers) else {
+                continue;
+            };
+            let _ = accessor::read_raw(&described, MAX_ELEMENTS);
+            match described.element_type {
+                ElementType::Scalar => {
+                    let _ = accessor::read_floats::<1>(&described, MAX_ELEMENTS);
+                    let _ = accessor::read_indices(&described, MAX_ELEMENTS);
+                }
+                ElementType::Vec2 => {
+                    let _ = accessor::read_floats::<2>(&described, MAX_ELEMENTS);
+                }
+                ElementType::Vec3 => {
+                    let _ = accessor::read_floats::<3>(&described, MAX_ELEMENTS);
+                }
+                ElementType::Vec4 | ElementType::Mat2 => {
+                    let _ = accessor::read_floats::<4>(&described, MAX_ELEMENTS);
+                }
+                _ => {}
+            }
+            // A mismatched component count is an error, never a panic.
+            let _ = accessor::read_floats::<3>(&described, MAX_ELEMENTS);
+        }
+    }
+    let kind = if glb_container::is_glb(data) {
+        InputKind::Glb
+    } else {
+        InputKind::Gltf
+    };
+    run_scene(kind, data, &NoResources, &scene_options(data));
+}
+
+/// OBJ text, then after the first `0xFF` byte (never in UTF-8) an MTL supplied as `a.mtl`; run
+/// with the default options and with the axis method (which needs no UVs).
+pub fn obj(data: &[u8]) {
+    let (text, mtl) = match data.iter().position(|&b| b == 0xFF) {
+        Some(at) => (&data[..at], &data[at + 1..]),
+        None => (data, &[][..]),
+    };
+    let mut parts = PartSet::new();
+    if parts.insert("a.mtl", mtl).is_err() {
+        return;
+    }
+    let options = SceneOptions {
+        limits: LIMITS,
+        ..SceneOptions::default()
+    };
+    run_scene(InputKind::Obj, text, &parts, &options);
+    let axis = SceneOptions {
+        method: Method::Axis,
+        all: true,
+        format: OutputFormat::GltfEmbedded,
+        ..options
+    };
+    run_scene(InputKind::Obj, text, &parts, &axis);
+}
+
+/// One field of a multipart upload.
+struct Field<'a> {
+    name: &'a [u8],
+    file_name: Option<&'a [u8]>,
+    bytes: &'a [u8],
+}
+
+/// Reads `len` bytes at `*at`, or what is left.
+fn take<'a>(data: &'a [u8], at: &mut usize, len: usize) -> &'a [u8] {
+    let start = (*at).min(data.len());
+    let end = start.saturating_add(len).min(data.len());
+    *at = end;
+    &data[start..end]
+}
+
+/// Splits the input into multipart fields. Each record is: a name length (1 byte) and the field
+/// name; a file-name length (1 byte, `0xFF` for no file name) and the file name; the data length
+/// (4 bytes, little-endian, cut to what is left) and the data. At most 16 records.
+fn fields(data: &[u8]) -> Vec<Field<'_>> {
+    let mut out = Vec::new();
+    let mut at = 0;
+    while at < data.len() && out.len() < 16 {
+        let name_len = take(data, &mut at, 1)[0] as usize;
+        let name = take(data, &mut at, name_len);
+        let file_name = match take(data, &mut at, 1).first() {
+            None | Some(0xFF) => None,
+            Some(&len) => Some(take(data, &mut at, len as usize)),
+        };
+        let len = take(data, &mut at, 4);
+        let mut word = [0u8; 4];
+        word[..len.len()].copy_from_slice(len);
+        let bytes = take(data, &mut at, u32::from_le_bytes(word) as usize);
+        out.push(Field {
+            name,
+            file_name,
+            bytes,
+        });
+    }
+    out
+}
+
+/// Encodes fields in the format [`parts`] reads (for making seeds).
+pub fn encode_parts(fields: &[(&str, Option<&str>, &[u8])]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for (name, file_name, bytes) in fields {
+        out.push(name.len() as u8);
+        out.extend_from_slice(name.as_bytes());
+        match file_name {
+            Some(f) => {
+                out.push(f.len() as u8);
+                out.extend_from_slice(f.as_bytes());
+            }
+            None => out.push(0xFF),
+        }
+        out.extend_from_slice(&(bytes.len() as u32).to_le_bytes());
+        out.extend_from_slice(bytes);
+    }
+    out
+}
+
+/// A multipart upload (see [`fields`] for the format), assembled as the server does: the scene
+/// is the field named file, scene or model, else the first whose file name has a scene
+/// extension, else the first; every other field is a part named by its file name, else its field
+/// name; two parts with one name are an error. The kind comes from the main file's name, else
+/// from its bytes.
+pub fn parts(data: &[u8]) {
+    let mut fields = fields(data);
+    let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+    let main = fields
+        .iter()
+        .position(|f| matches!(f.name, b"file" | b"scene" | b"model"))
+        .or_else(|| {
+            fields.iter().position(|f| {
+                f.file_name
+                    .is_some_and(|n| InputKind::from_file_name(&text(n)).is_some())
+            })
+        })
+        .or(if fields.is_empty() { None } else { Some(0) });
+    let Some(main) = main else { return };
+    let main = fields.remove(main);
+    let Some(kind) = main
+        .file_name
+        .and_then(|n| InputKind::from_file_name(&text(n)))
+        .or_else(|| InputKind::sniff(main.bytes))
+    else {
+        return;
+    };
+    let mut set = PartSet::new();
+    for field in &fields {
+        if set
+            .insert(text(field.file_name.unwrap_or(field.name)), field.bytes)
+            .is_err()
+        {
+            return;
+        }
+    }
+    run_scene(kind, main.bytes, &set, &scene_options(data));
+}
+
+// ---------------------------------------------------------------------------------------------
+// The tangent core.
+
+/// One float from one byte, for the compact encoding: the special values, else a small multiple
+/// of 1/8 (so that positions coincide and triangles degenerate often).
+fn compact_float(b: u8) -> f32 {
+    match b {
+        0x80 => f32::NAN,
+        0x81 => f32::INFINITY,
+        0x82 => f32::NEG_INFINITY,
+        0x83 => f32::from_bits(1), // the smallest subnormal
+        0x84 => -0.0,
+        0x85 => f32::MAX,
+        0x86 => f32::MIN_POSITIVE,
+        0x87 => 1e-30,
+        _ => f32::from(b as i8) / 8.0,
+    }
+}
+
+/// A mesh decoded from bytes.
+struct CoreMesh {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    uvs: Vec<[f32; 2]>,
+    indices: Vec<u32>,
+    options: Options,
+    has_uvs: bool,
+}
+
+/// The layout: byte 0 the vertex count (at most what the data holds); byte 1 flags (bit 0: each
+/// float is one byte, see [`compact_float`], else 4 bytes of raw `f32` bits; bit 1: UV origin
+/// bottom left; bit 2: area weighting; bit 3: smooth generated normals, with the crease angle
+/// from byte 2 as degrees (255: NaN); bit 4: no UVs; bit 5: keep an index count that is not a
+/// multiple of 3). Then per vertex 8 floats (position, normal, UV); then one index per byte: the
+/// byte modulo the vertex count, except 0xFF, which is out of range.
+fn core_mesh(data: &[u8]) -> Option<CoreMesh> {
+    let [count, flags, crease, rest @ ..] = data else {
+        return None;
+    };
+    let compact = flags & 1 != 0;
+    let float_size = if compact { 1 } else { 4 };
+    let vertex_size = 8 * float_size;
+    let n = (*count as usize).min(rest.len() / vertex_size);
+    let (vertex_bytes, index_bytes) = rest.split_at(n * vertex_size);
+    let floats: Vec<f32> = if compact {
+        vertex_bytes.iter().map(|&b| compact_float(b)).collect()
+    } else {
+        vertex_bytes
+            .chunks_exact(4)
+            .map(|w| f32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect()
+    };
+    let mut positions = Vec::with_capacity(n);
+    let mut normals = Vec::with_capacity(n);
+    let mut uvs = Vec::with_capacity(n);
+    for v in floats.chunks_exact(8) {
+        positions.push([v[0], v[1], v[2]]);
+        normals.push([v[3], v[4], v[5]]);
+        uvs.push([v[6], v[7]]);
+    }
+    let mut indices: Vec<u32> = index_bytes
+        .iter()
+        .map(|&b| match b {
+            0xFF => n as u32,
+            _ if n == 0 => 0,
+            _ => u32::from(b) % n as u32,
+        })
+        .collect();
+    if flags & 0x20 == 0 {
+        indices.truncate(indices.len() / 3 * 3);
+    }
+    let normal_mode = if flags & 8 != 0 {
+        NormalMode::SmoothByAngle {
+            crease_degrees: if *crease == 255 {
+                f32::NAN
+            } else {
+                f32::from(*crease)
+            },
+        }
+    } else {
+        NormalMode::Flat
+    };
+    Some(CoreMesh {
+        positions,
+        normals,
+        uvs,
+        indices,
+        options: Options {
+            method: Method::MikkTSpace,
+            uv_origin: if flags & 2 != 0 {
+                UvOrigin::BottomLeft
+            } else {
+                UvOrigin::TopLeft
+            },
+            weighting: if flags & 4 != 0 {
+                Weighting::Area
+            } else {
+                Weighting::Angle
+            },
+            normal_mode,
+            parallel: false,
+        },
+        has_uvs: flags & 0x10 == 0,
+    })
+}
+
+const UNIT_TOLERANCE: f64 = 1e-5;
+const ORTHOGONAL_TOLERANCE: f64 = 1e-4;
+const PLUS_Z: [f64; 3] = [0.0, 0.0, 1.0];
+
+/// `v` normalized in f64, unless it is not finite or zero.
+fn unit64(v: [f32; 3]) -> Option<[f64; 3]> {
+    if !v.iter().all(|x| x.is_finite()) || v.iter().all(|&x| x == 0.0) {
+        return None;
+    }
+    let v = v.map(f64::from);
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    Some(v.map(|x| x / len))
+}
+
+/// The unit face normal `(b - a) × (c - a)` in f64, unless it is zero or not finite.
+fn face_normal(p: [[f32; 3]; 3]) -> Option<[f64; 3]> {
+    let [a, b, c] = p.map(|v| v.map(f64::from));
+    let (e1, e2) = (
+        [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+        [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+    );
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    (len > 0.0 && len.is_finite()).then(|| n.map(|x| x / len))
+}
+
+/// Finite, unit, `w` = ±1, orthogonal to `normal`: what tests/properties.rs asserts of every
+/// emitted tangent.
+fn check_tangent(t: [f32; 4], normal: [f64; 3], what: &str) {
+    assert!(
+        t.iter().all(|x| x.is_finite()),
+        "{what}: tangent {t:?} is not finite"
+    );
+    let v = [t[0], t[1], t[2]].map(f64::from);
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    assert!(
+        (len - 1.0).abs() <= UNIT_TOLERANCE,
+        "{what}: tangent {t:?} has length {len}"
+    );
+    let d = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2];
+    assert!(
+        d.abs() <= ORTHOGONAL_TOLERANCE,
+        "{what}: tangent {t:?} has dot {d} with its normal {normal:?}"
+    );
+    assert!(
+        t[3] == 1.0 || t[3] == -1.0,
+        "{what}: tangent {t:?} has w {}",
+        t[3]
+    );
+}
+
+/// The invariants of tests/properties.rs (`check_output`) that need no oracle: shapes, every
+/// corner's tangent valid against its normal and copying the right vertex, unused vertices valid
+/// against their own normal, generated normals finite and unit.
+fn check_core(input: &MeshInput<'_>, options: &Options, out: &Tangents) {
+    let vertex_count = input.positions.len();
+    let corner_count = input.indices.map_or(vertex_count, <[u32]>::len);
+    let vertex_of = |c: usize| input.indices.map_or(c, |i| i[c] as usize);
+    let split = &out.split;
+    let output_count = split.source_vertex.len();
+    assert_eq!(split.indices.len(), corner_count, "{options:?}");
+    assert_eq!(split.vertex_tangents.len(), output_count, "{options:?}");
+    assert!(
+        split
+            .source_vertex
+            .iter()
+            .all(|&v| (v as usize) < vertex_count),
+        "source vertex out of range"
+    );
+    assert!(
+        split.indices.iter().all(|&v| (v as usize) < output_count),
+        "split index out of range"
+    );
+    match (input.normals, &out.normals) {
+        (Some(_), None) => {
+            assert!(output_count >= vertex_count);
+            assert!(
+                split.source_vertex[..vertex_count]
+                    .iter()
+                    .enumerate()
+                    .all(|(i, &v)| v as usize == i),
+                "the first {vertex_count} source vertices are not the identity"
+            );
+        }
+        (None, Some(normals)) => {
+            assert_eq!(normals.len(), output_count);
+            for (v, n) in normals.iter().enumerate() {
+                let len = n.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>().sqrt();
+                assert!(
+                    n.iter().all(|x| x.is_finite()) && (len - 1.0).abs() <= UNIT_TOLERANCE,
+                    "generated normal {n:?} of output vertex {v} is not finite and unit"
+                );
+            }
+        }
+        (given, returned) => panic!(
+            "normals given: {}, normals returned: {}",
+            given.is_some(),
+            returned.is_some()
+        ),
+    }
+    let mut used = vec![false; output_count];
+    for c in 0..corner_count {
+        let o = split.indices[c] as usize;
+        used[o] = true;
+        let normal = match (&out.normals, input.normals) {
+            (Some(generated), _) => unit64(generated[o]).unwrap_or(PLUS_Z),
+            (None, Some(given)) => unit64(given[vertex_of(c)]).unwrap_or_else(|| {
+                let base = c - c % 3;
+                let tri = [base, base + 1, base + 2].map(|k| input.positions[vertex_of(k)]);
+                face_normal(tri).unwrap_or(PLUS_Z)
+            }),
+            (None, None) => unreachable!("checked above"),
+        };
+        check_tangent(
+            split.vertex_tangents[o],
+            normal,
+            &format!("corner {c} ({options:?})"),
+        );
+        assert_eq!(
+            split.source_vertex[o] as usize,
+            vertex_of(c),
+            "corner {c}: output vertex {o} copies the wrong input vertex"
+        );
+    }
+    for (o, &is_used) in used.iter().enumerate() {
+        if is_used {
+            continue;
+        }
+        let given = input
+            .normals
+            .filter(|_| out.normals.is_none() && o < vertex_count)
+            .unwrap_or_else(|| panic!("output vertex {o} is not used by any corner"));
+        check_tangent(
+            split.vertex_tangents[o],
+            unit64(given[o]).unwrap_or(PLUS_Z),
+            &format!("unused vertex {o} ({options:?})"),
+        );
+    }
+}
+
+/// Arbitrary geometry (see [`core_mesh`] for the layout) through every method, with and
+/// without normals, indexed and not; every result checked with [`check_core`], every error
+/// explained by the input.
+pub fn core(data: &[u8]) {
+    let Some(mesh) = core_mesh(data) else { return };
+    let vertex_count = mesh.positions.len();
+    let out_of_range = mesh.indices.iter().any(|&i| i as usize >= vertex_count);
+    for method in [Method::MikkTSpace, Method::Fast, Method::Axis] {
+        for with_normals in [true, false] {
+            for indexed in [true, false] {
+                let input = MeshInput {
+                    positions: &mesh.positions,
+                    normals: with_normals.then_some(&mesh.normals[..]),
+                    uvs: mesh.has_uvs.then_some(&mesh.uvs[..]),
+                    indices: indexed.then_some(&mesh.indices[..]),
+                };
+                let options = Options {
+                    method,
+                    ..mesh.options
+                };
+                let corners = if indexed {
+                    mesh.indices.len()
+                } else {
+                    vertex_count
+                };
+                match tangent::generate(&input, &options) {
+                    Ok(out) => check_core(&input, &options, &out),
+                    Err(e) => {
+                        let explained = match e {
+                            CoreError::MissingUvs { .. } => !mesh.has_uvs && method != Method::Axis,
+                            CoreError::NotTriangles { count } => {
+                                count == corners && corners % 3 != 0
+                            }
+                            CoreError::IndexOutOfRange { .. } => indexed && out_of_range,
+                            _ => false,
+                        };
+                        assert!(explained, "unexplained error {e:?} for {options:?}");
+                    }
+                }
+            }
+        }
+    }
+}
