@@ -6,21 +6,13 @@
 #[allow(unused_imports)]
 mod common;
 
+use common::fixture;
+
 use common::scene::{Builder, normal_mapped, texture_stub};
 use reqwest::multipart::{Form, Part};
 use serde_json::{Value, json};
-use std::path::Path;
 use std::process::Command;
 use tspace::config::ServerConfig;
-
-fn fixture(path: &str) -> Vec<u8> {
-    std::fs::read(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("fixtures")
-            .join(path),
-    )
-    .unwrap()
-}
 
 /// How an input is sent.
 enum Body {

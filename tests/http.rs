@@ -3,22 +3,14 @@
 #[allow(unused_imports)]
 mod common;
 
+use common::fixture;
+
 use common::scene::{Builder, normal_mapped, texture_stub};
 use reqwest::multipart::{Form, Part};
 use serde_json::{Value, json};
-use std::path::Path;
 use std::time::Duration;
 use tspace::config::ServerConfig;
 use tspace::server::{Running, start};
-
-fn fixture(path: &str) -> Vec<u8> {
-    std::fs::read(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("fixtures")
-            .join(path),
-    )
-    .unwrap()
-}
 
 async fn server(config: ServerConfig) -> (Running, String) {
     let running = start(config).await.expect("server starts");
@@ -308,10 +300,20 @@ async fn every_error_is_a_problem() {
     assert!(status.starts_with("HTTP/1.1 413"), "{status}");
     let response = http.get(format!("{base}/nowhere")).send().await.unwrap();
     assert_eq!(response.status(), 404);
-    assert_eq!(response.headers()["content-type"], "application/problem+json");
-    let response = http.get(format!("{base}/v1/tangents")).send().await.unwrap();
+    assert_eq!(
+        response.headers()["content-type"],
+        "application/problem+json"
+    );
+    let response = http
+        .get(format!("{base}/v1/tangents"))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(response.status(), 405);
-    assert_eq!(response.headers()["content-type"], "application/problem+json");
+    assert_eq!(
+        response.headers()["content-type"],
+        "application/problem+json"
+    );
     running.shutdown().await.unwrap();
 }
 

@@ -5,23 +5,13 @@
 #[allow(unused_imports)]
 mod common;
 
-use common::validator::{self, ValidatorReport};
+use common::{assert_valid_output as assert_valid, fixture, glb_json};
 use serde_json::Value;
-use std::path::Path;
 use tspace::scene::gltf::load::NoResources;
 use tspace::scene::gltf::write::OutputFormat;
 use tspace::scene::gltf::{Processed, SceneOptions, process};
 use tspace::scene::uri::PartSet;
 use tspace::tangent::Method;
-
-fn fixture(path: &str) -> Vec<u8> {
-    std::fs::read(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("fixtures")
-            .join(path),
-    )
-    .unwrap_or_else(|e| panic!("fixture {path}: {e}"))
-}
 
 /// Processes a `.gltf` fixture with its `.bin` supplied as a part.
 fn run_gltf(dir: &str, name: &str, options: SceneOptions) -> Processed {
@@ -37,36 +27,6 @@ fn overwrite() -> SceneOptions {
         overwrite: true,
         ..SceneOptions::default()
     }
-}
-
-/// The JSON chunk of a GLB, parsed.
-fn glb_json(bytes: &[u8]) -> Value {
-    let glb = tspace::scene::gltf::glb::parse(bytes).expect("a GLB");
-    serde_json::from_slice(glb.json).expect("JSON")
-}
-
-/// The validator's verdict, ignoring the images the fixtures deliberately lack.
-fn assert_valid(name: &str, bytes: &[u8]) -> Option<ValidatorReport> {
-    let report = validator::validate(name, bytes)?;
-    eprintln!("validator, {name}: {}", report.summary());
-    for m in &report.messages {
-        eprintln!(
-            "  {:?} {} {:?} {}",
-            m.severity, m.code, m.pointer, m.message
-        );
-    }
-    let errors: Vec<_> = report
-        .messages_of(validator::Severity::Error)
-        .filter(|m| {
-            !(m.code == "IO_ERROR"
-                && m.pointer
-                    .as_deref()
-                    .is_some_and(|p| p.starts_with("/images/")))
-        })
-        .map(|m| format!("{} at {:?}: {}", m.code, m.pointer, m.message))
-        .collect();
-    assert!(errors.is_empty(), "{name}: validator errors {errors:#?}");
-    Some(report)
 }
 
 /// Reads every corner's TANGENT and normal through the `gltf` crate (an independent reader).

@@ -3,43 +3,17 @@
 #[allow(unused_imports)]
 mod common;
 
-use common::validator;
-use std::path::Path;
+use common::{assert_valid_output, fixture, glb_json};
 use tspace::scene::gltf::SceneOptions;
 use tspace::scene::input::{InputKind, process};
 use tspace::scene::uri::PartSet;
 use tspace::tangent::Method;
 
-fn fixture(path: &str) -> Vec<u8> {
-    std::fs::read(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("fixtures")
-            .join(path),
-    )
-    .unwrap()
-}
-
 fn assert_valid(name: &str, bytes: &[u8]) {
-    let Some(report) = validator::validate(name, bytes) else {
-        return;
-    };
-    let errors: Vec<_> = report
-        .messages_of(validator::Severity::Error)
-        .filter(|m| {
-            !(m.code == "IO_ERROR"
-                && m.pointer
-                    .as_deref()
-                    .is_some_and(|p| p.starts_with("/images/")))
-        })
-        .map(|m| format!("{} at {:?}", m.code, m.pointer))
-        .collect();
-    assert!(errors.is_empty(), "{name}: {errors:?}");
-    let warnings = report.warning_codes();
-    assert!(warnings.is_empty(), "{name}: warnings {warnings:?}");
-}
-
-fn glb_json(bytes: &[u8]) -> serde_json::Value {
-    serde_json::from_slice(tspace::scene::gltf::glb::parse(bytes).unwrap().json).unwrap()
+    if let Some(report) = assert_valid_output(name, bytes) {
+        let warnings = report.warning_codes();
+        assert!(warnings.is_empty(), "{name}: warnings {warnings:?}");
+    }
 }
 
 #[test]
