@@ -153,20 +153,49 @@ pub(crate) fn repair_corner(
 pub(crate) fn finish_corner(
     mesh: &Mesh<'_>,
     corner: usize,
-    mut tangent: [f32; 4],
+    tangent: [f32; 4],
     known_valid: bool,
     flip_w: bool,
     repairs: &mut Vec<(u32, Problem)>,
 ) -> [f32; 4] {
-    if !known_valid {
-        if let Some(problem) = repair_corner(mesh, corner, &mut tangent) {
-            repairs.push((corner as u32, problem));
-        }
+    if known_valid {
+        return with_w_convention(tangent, flip_w);
     }
-    if flip_w {
-        tangent[3] = -tangent[3];
+    // Out of line, so that the common path above keeps the tangent in registers: negating `w`
+    // in memory right after a call that takes its address made the next 16-byte load wait on a
+    // failed store forward, a fifth of the per-vertex bookkeeping.
+    repair_and_convert(mesh, corner, tangent, flip_w, repairs)
+}
+
+#[inline]
+pub(crate) fn with_w_convention(tangent: [f32; 4], flip_w: bool) -> [f32; 4] {
+    // Negation as a sign-bit mask over all four lanes: one vector xor, where negating the
+    // fourth lane alone was assembled from partial stores that the caller's 16-byte load could
+    // not forward from.
+    let mask = if flip_w {
+        [0, 0, 0, 1u32 << 31]
+    } else {
+        [0; 4]
+    };
+    let mut out = [0.0f32; 4];
+    for ((o, t), m) in out.iter_mut().zip(tangent).zip(mask) {
+        *o = f32::from_bits(t.to_bits() ^ m);
     }
-    tangent
+    out
+}
+
+#[inline(never)]
+fn repair_and_convert(
+    mesh: &Mesh<'_>,
+    corner: usize,
+    mut tangent: [f32; 4],
+    flip_w: bool,
+    repairs: &mut Vec<(u32, Problem)>,
+) -> [f32; 4] {
+    if let Some(problem) = repair_corner(mesh, corner, &mut tangent) {
+        repairs.push((corner as u32, problem));
+    }
+    with_w_convention(tangent, flip_w)
 }
 
 /// Replaces every invalid tangent and counts what was replaced.
