@@ -856,6 +856,27 @@ impl Batch {
 
     /// The reference's per-corner arithmetic, in its operation order, column by column.
     fn evaluate_columns(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU was just found to support AVX2, the only requirement of
+            // `evaluate_columns_avx2`.
+            return unsafe { self.evaluate_columns_avx2() };
+        }
+        self.evaluate_columns_portable();
+    }
+
+    /// The same loops compiled for AVX2: eight f32 (four f64 in the arccosine) per instruction
+    /// instead of four (two). Only the vector width changes: Rust never fuses a multiply and an
+    /// add unless asked (`mul_add`), and FMA is not enabled anyway, so every operation rounds
+    /// exactly as in the portable build and the results are bit-identical.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn evaluate_columns_avx2(&mut self) {
+        self.evaluate_columns_portable();
+    }
+
+    #[inline(always)]
+    fn evaluate_columns_portable(&mut self) {
         let len = self.len;
         let n = self.normal.each_ref().map(|c| &c[..len]);
         let fs = self.frame_s.each_ref().map(|c| &c[..len]);
