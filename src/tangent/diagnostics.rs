@@ -199,8 +199,13 @@ pub(crate) fn analyze_triangles(
         let mut tallies = TriangleTallies::default();
         for t in i * CHUNK..((i + 1) * CHUNK).min(triangle_count) {
             let v = mesh.triangle(t);
-            let p = v.map(|v| mesh.positions[v]);
-            let uv = v.map(|v| mesh.uv(v));
+            // Element by element: `v.map(..)` builds the arrays on the stack in pieces.
+            let p = [
+                mesh.positions[v[0]],
+                mesh.positions[v[1]],
+                mesh.positions[v[2]],
+            ];
+            let uv = [mesh.uv(v[0]), mesh.uv(v[1]), mesh.uv(v[2])];
             check.check(&mut tallies, t, v, &p, &uv);
         }
         tallies

@@ -80,8 +80,14 @@ pub(crate) fn generate(
         for (k, (frame, flag)) in frames.iter_mut().zip(flags.iter_mut()).enumerate() {
             let t = chunk * CHUNK + k;
             let v = mesh.triangle(t);
-            let p = v.map(|v| mesh.positions[v]);
-            let uv = v.map(|v| mesh.uv(v));
+            // Element by element rather than `v.map(..)`, which assembled the arrays on the
+            // stack in pieces and read them back whole, stalling on every triangle.
+            let p = [
+                mesh.positions[v[0]],
+                mesh.positions[v[1]],
+                mesh.positions[v[2]],
+            ];
+            let uv = [mesh.uv(v[0]), mesh.uv(v[1]), mesh.uv(v[2])];
             (*frame, *flag) = triangle_frame(&p, &uv);
             check.check(&mut tallies, t, v, &p, &uv);
         }
