@@ -380,40 +380,45 @@ impl Context<'_> {
         }
         // Pair each leaving edge with the arriving edge from the same vertex; more than one
         // candidate on either side is the ambiguous case the general path resolves.
-        let mut adjacent = [0u32; MAX];
-        let mut arriving_pairs = [0u8; MAX];
-        for j in 0..k {
-            let mut leaving_pairs = 0;
-            for i in 0..k {
-                if ends[j][1] == ends[i][0] {
-                    leaving_pairs += 1;
-                    arriving_pairs[i] += 1;
-                    adjacent[j] |= 1 << i;
-                    adjacent[i] |= 1 << j;
-                }
+        // `follows[j]`: the corners whose arriving edge pairs with the edge leaving corner j.
+        // Each corner must have at most one follower and follow at most one corner; then the
+        // pairs form paths and cycles, and the corners are connected exactly when they make a
+        // single path or a single cycle, which one walk decides (where a flood fill over an
+        // adjacency matrix took O(k²) steps).
+        let mut paired = 0u32;
+        let mut follows = [0u32; MAX];
+        for (j, follow) in follows[..k].iter_mut().enumerate() {
+            let leaving = ends[j][1];
+            let mut matches = 0u32;
+            for (i, end) in ends[..k].iter().enumerate() {
+                matches |= u32::from(end[0] == leaving) << i;
             }
-            if leaving_pairs > 1 {
+            if matches & (matches.wrapping_sub(1)) != 0 || matches & paired != 0 {
                 return false;
             }
+            paired |= matches;
+            *follow = matches;
         }
-        if arriving_pairs[..k].iter().any(|&n| n > 1) {
+        let pairs = paired.count_ones() as usize;
+        let start = if pairs == k {
+            // All in cycles: one cycle through corner 0, or more than one group.
+            0
+        } else if pairs + 1 == k {
+            // One path, from the corner that follows none, or a path and cycles.
+            (!paired).trailing_zeros() as usize
+        } else {
             return false;
-        }
-        let all = if k == MAX { u32::MAX } else { (1u32 << k) - 1 };
-        let mut reached = 1u32;
-        loop {
-            let mut grown = reached;
-            let mut rest = reached;
-            while rest != 0 {
-                grown |= adjacent[rest.trailing_zeros() as usize];
-                rest &= rest - 1;
-            }
-            if grown == reached {
+        };
+        let mut at = start;
+        let mut visited = 1;
+        while follows[at] != 0 && visited <= k {
+            at = follows[at].trailing_zeros() as usize;
+            if at == start {
                 break;
             }
-            reached = grown;
+            visited += 1;
         }
-        if reached != all {
+        if visited != k {
             return false;
         }
 
