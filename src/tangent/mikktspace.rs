@@ -836,31 +836,41 @@ impl Batch {
             column.clear();
             column.resize(len, 0.0);
         }
-        let mut at = 0;
+        // Every column sliced to exactly `len` up front, and the corners visited as one slice,
+        // so that the fifteen stores per corner need no bounds checks (indexing the vectors
+        // directly spent a third of the gather on them).
+        let corners = &table.corners[slots.clone()];
+        let len = corners.len();
+        let [nx, ny, nz] = self.normal.each_mut().map(|c| &mut c[..len]);
         for class in classes {
-            let corners = table.of(class);
-            let Some(&first) = corners.first() else {
+            let range = table.offsets[class] as usize - slots.start
+                ..table.offsets[class + 1] as usize - slots.start;
+            if range.is_empty() {
                 continue;
-            };
-            let normal = mesh.normals[mesh.indices[first as usize] as usize];
-            for &corner in corners {
-                let corner = corner as usize;
-                let triangle = corner / 3;
-                let base = triangle * 3;
-                let i = corner - base;
-                let here = mesh.positions[mesh.indices[corner] as usize];
-                let next = mesh.positions[mesh.indices[base + NEXT[i]] as usize];
-                let prev = mesh.positions[mesh.indices[base + PREV[i]] as usize];
-                let frame = &context.frames[triangle];
-                for k in 0..3 {
-                    self.normal[k][at] = normal[k];
-                    self.frame_s[k][at] = frame.s[k];
-                    self.frame_t[k][at] = frame.t[k];
-                    self.to_next[k][at] = next[k] - here[k];
-                    self.to_prev[k][at] = prev[k] - here[k];
-                }
-                at += 1;
             }
+            let first = corners[range.start];
+            let normal = mesh.normals[mesh.indices[first as usize] as usize];
+            nx[range.clone()].fill(normal[0]);
+            ny[range.clone()].fill(normal[1]);
+            nz[range].fill(normal[2]);
+        }
+        let [fsx, fsy, fsz] = self.frame_s.each_mut().map(|c| &mut c[..len]);
+        let [ftx, fty, ftz] = self.frame_t.each_mut().map(|c| &mut c[..len]);
+        let [nex, ney, nez] = self.to_next.each_mut().map(|c| &mut c[..len]);
+        let [pex, pey, pez] = self.to_prev.each_mut().map(|c| &mut c[..len]);
+        for at in 0..len {
+            let corner = corners[at] as usize;
+            let triangle = corner / 3;
+            let base = triangle * 3;
+            let i = corner - base;
+            let here = mesh.positions[mesh.indices[corner] as usize];
+            let next = mesh.positions[mesh.indices[base + NEXT[i]] as usize];
+            let prev = mesh.positions[mesh.indices[base + PREV[i]] as usize];
+            let frame = &context.frames[triangle];
+            (fsx[at], fsy[at], fsz[at]) = (frame.s[0], frame.s[1], frame.s[2]);
+            (ftx[at], fty[at], ftz[at]) = (frame.t[0], frame.t[1], frame.t[2]);
+            (nex[at], ney[at], nez[at]) = (next[0] - here[0], next[1] - here[1], next[2] - here[2]);
+            (pex[at], pey[at], pez[at]) = (prev[0] - here[0], prev[1] - here[1], prev[2] - here[2]);
         }
         self.evaluate_columns();
     }
