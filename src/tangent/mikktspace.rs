@@ -832,9 +832,12 @@ impl Batch {
         let slots = table.offsets[classes.start] as usize..table.offsets[classes.end] as usize;
         let len = slots.len();
         self.len = len;
+        // Every column is written in full over `..len` below, so the columns only grow and are
+        // never cleared: zeroing them for every batch was a visible memset.
         for column in self.columns_mut() {
-            column.clear();
-            column.resize(len, 0.0);
+            if column.len() < len {
+                column.resize(len, 0.0);
+            }
         }
         // Every column sliced to exactly `len` up front, and the corners visited as one slice,
         // so that the fifteen stores per corner need no bounds checks (indexing the vectors
