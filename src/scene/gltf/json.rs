@@ -1115,6 +1115,42 @@ fn lead_after_comma(gap: &str) -> &str {
     gap.find(',').map_or("", |i| gap.get(i + 1..).unwrap_or(""))
 }
 
+/// The deletions for removed items (members or elements), given each item's start and end.
+/// Removals go by runs of adjacent removed items, so that each comma is deleted once: a run
+/// after a kept item takes the comma before it; a run at the start takes the comma after it; a
+/// run that is everything takes no comma.
+fn removal_pieces(
+    n: usize,
+    removed: impl Fn(usize) -> bool,
+    start: impl Fn(usize) -> usize,
+    end: impl Fn(usize) -> usize,
+    source: &str,
+    out: &mut Vec<(Range<usize>, String)>,
+) -> Result<(), EditError> {
+    let mut i = 0;
+    while i < n {
+        if !removed(i) {
+            i += 1;
+            continue;
+        }
+        let first = i;
+        while i < n && removed(i) {
+            i += 1;
+        }
+        let last = i - 1;
+        let range = if first > 0 {
+            end(first - 1)..end(last)
+        } else if i < n {
+            start(first)..start(i)
+        } else {
+            start(first)..end(last)
+        };
+        slice(source, range.clone())?;
+        out.push((range, String::new()));
+    }
+    Ok(())
+}
+
 impl ObjectEdit {
     fn has_key(&self, key: &str) -> bool {
         self.members.iter().any(|m| m.2 == key && !m.3) || self.added.iter().any(|(k, _)| k == key)
@@ -1126,30 +1162,7 @@ impl ObjectEdit {
         let end = |i: usize| self.members.get(i).map_or(0, |m| m.1.end);
         let removed = |i: usize| self.members.get(i).is_some_and(|m| m.3);
 
-        // Removals go by runs of adjacent removed members, so that each comma is deleted once:
-        // a run after a kept member takes the comma before it; a run at the start takes the
-        // comma after it; a run that is everything takes no comma.
-        let mut i = 0;
-        while i < n {
-            if !removed(i) {
-                i += 1;
-                continue;
-            }
-            let first = i;
-            while i < n && removed(i) {
-                i += 1;
-            }
-            let last = i - 1;
-            let range = if first > 0 {
-                end(first - 1)..end(last)
-            } else if i < n {
-                start(first)..start(i)
-            } else {
-                start(first)..end(last)
-            };
-            slice(source, range.clone())?;
-            out.push((range, String::new()));
-        }
+        removal_pieces(n, removed, start, end, source, out)?;
 
         if self.added.is_empty() {
             return Ok(());
@@ -1197,28 +1210,7 @@ impl ArrayEdit {
         let removed = |i: usize| self.removed.get(i).copied().unwrap_or(false);
         let start = |i: usize| self.elements.get(i).map_or(0, |e| e.start);
         let end = |i: usize| self.elements.get(i).map_or(0, |e| e.end);
-        // As for object members: each run of removed elements takes one comma with it.
-        let mut i = 0;
-        while i < n {
-            if !removed(i) {
-                i += 1;
-                continue;
-            }
-            let first = i;
-            while i < n && removed(i) {
-                i += 1;
-            }
-            let last = i - 1;
-            let range = if first > 0 {
-                end(first - 1)..end(last)
-            } else if i < n {
-                start(first)..start(i)
-            } else {
-                start(first)..end(last)
-            };
-            slice(source, range.clone())?;
-            out.push((range, String::new()));
-        }
+        removal_pieces(n, removed, start, end, source, out)?;
         if self.added.is_empty() {
             return Ok(());
         }
