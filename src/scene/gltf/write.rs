@@ -602,8 +602,16 @@ pub fn write(
         new_view_offsets.push(at);
         bin.extend_from_slice(data);
     }
-    let bin_needed =
-        buffers.iter().enumerate().any(|(b, _)| has_data(b)) || !new_view_offsets.is_empty();
+    // In a GLB, a first buffer without a uri is the BIN chunk. When the only buffers are empty
+    // ones (an EXT_meshopt_compression fallback, or a `.gltf` buffer with no uri), a BIN chunk
+    // must still lead, or the first empty buffer would be read as it (found by fuzzing).
+    let bin_needed = buffers.iter().enumerate().any(|(b, _)| has_data(b))
+        || !new_view_offsets.is_empty()
+        || (format == OutputFormat::Glb && buffers.iter().any(|b| b.source == BufferSource::Empty));
+    // Every buffer declares at least one byte, which its data must hold.
+    if bin_needed && bin.is_empty() {
+        bin.push(0);
+    }
 
     let mut editor = Editor::new(&loaded.doc);
 
