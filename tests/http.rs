@@ -545,3 +545,67 @@ async fn health_readiness_and_documentation() {
     assert!(response.headers().contains_key("x-request-id"));
     running.shutdown().await.unwrap();
 }
+
+/// The jobs gauges, read from /metrics.
+async fn gauges(base: &str) -> (u64, u64) {
+    let text = client()
+        .get(format!("{base}/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    let value = |name: &str| -> u64 {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.trim().parse().ok())
+            .unwrap()
+    };
+    (value("tspace_jobs_queued "), value("tspace_jobs_running "))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn clients_that_vanish_leave_nothing_behind() {
+    use tokio::io::AsyncWriteExt;
+    let (running, base) = server(ServerConfig::local()).await;
+    let head = |length: usize| {
+        format!(
+            "POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/gltf-binary\r\nContent-Length: {length}\r\n\r\n"
+        )
+    };
+    // Gone mid-upload: half the body, then the connection closes.
+    let body = grid(300);
+    let mut upload = tokio::net::TcpStream::connect(running.addr).await.unwrap();
+    upload.write_all(head(body.len()).as_bytes()).await.unwrap();
+    upload.write_all(&body[..body.len() / 2]).await.unwrap();
+    drop(upload);
+    // Gone mid-download: the whole body, then the connection closes before the answer.
+    for _ in 0..3 {
+        let mut download = tokio::net::TcpStream::connect(running.addr).await.unwrap();
+        download
+            .write_all(head(body.len()).as_bytes())
+            .await
+            .unwrap();
+        download.write_all(&body).await.unwrap();
+        drop(download);
+    }
+    // The abandoned jobs finish or are dropped; the gauges return to zero.
+    let mut settled = false;
+    for _ in 0..100 {
+        if gauges(&base).await == (0, 0) {
+            settled = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert!(settled, "jobs still counted: {:?}", gauges(&base).await);
+    let response = client()
+        .post(format!("{base}/v1/tangents"))
+        .body(grid(4))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    running.shutdown().await.unwrap();
+}
