@@ -70,6 +70,11 @@ fn grid(n: usize) -> Vec<u8> {
     b.glb(doc)
 }
 
+/// The report summary a response carries in `X-Tspace-Report`.
+fn summary_of(response: &reqwest::Response) -> Value {
+    serde_json::from_str(response.headers()["x-tspace-report"].to_str().unwrap()).unwrap()
+}
+
 async fn problem(response: reqwest::Response, status: u16, code: &str) -> Value {
     assert_eq!(response.status().as_u16(), status);
     assert_eq!(
@@ -98,8 +103,7 @@ async fn each_input_kind_gets_tangents() {
         .unwrap();
     assert_eq!(response.status(), 200);
     assert_eq!(response.headers()["content-type"], "model/gltf-binary");
-    let summary: Value =
-        serde_json::from_str(response.headers()["x-tspace-report"].to_str().unwrap()).unwrap();
+    let summary = summary_of(&response);
     assert_eq!(summary["generated"], json!(1));
     let bytes = response.bytes().await.unwrap();
     assert!(tspace::scene::gltf::glb::parse(&bytes).is_ok());
@@ -113,8 +117,7 @@ async fn each_input_kind_gets_tangents() {
         .await
         .unwrap();
     assert_eq!(response.status(), 200);
-    let summary: Value =
-        serde_json::from_str(response.headers()["x-tspace-report"].to_str().unwrap()).unwrap();
+    let summary = summary_of(&response);
     assert_eq!(summary["generated"], json!(1));
 
     // A .gltf with its .bin as a part (names as curl -F sends them).
@@ -134,8 +137,7 @@ async fn each_input_kind_gets_tangents() {
         .await
         .unwrap();
     assert_eq!(response.status(), 200);
-    let summary: Value =
-        serde_json::from_str(response.headers()["x-tspace-report"].to_str().unwrap()).unwrap();
+    let summary = summary_of(&response);
     assert_eq!(summary["generated"], json!(1));
 
     // OBJ with its MTL.

@@ -727,55 +727,8 @@ fn external_buffers_merge_into_one_and_a_draco_fallback_replaces_the_extension()
 fn required_meshopt_compression_is_decoded() {
     // An interleaved quad (position, normal, uv) and its indices, compressed by meshoptimizer.
     let uvs = [0f32, 0., 1., 0., 1., 1., 0., 1.];
-    let mut vertices = Vec::new();
-    for v in 0..4 {
-        let mut vertex = [0f32; 8];
-        vertex[..3].copy_from_slice(&QUAD_POSITIONS[v * 3..][..3]);
-        vertex[3..6].copy_from_slice(&QUAD_NORMALS[v * 3..][..3]);
-        vertex[6..].copy_from_slice(&uvs[v * 2..][..2]);
-        vertices.push(vertex);
-    }
     let indices = [0u32, 1, 2, 0, 2, 3];
-    let vertex_data = meshopt::encode_vertex_buffer(&vertices).unwrap();
-    let index_data = meshopt::encode_index_buffer(&indices, 4).unwrap();
-    let mut bin = vertex_data.clone();
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    let index_offset = bin.len();
-    bin.extend_from_slice(&index_data);
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    let mut doc = json!({
-        "asset": {"version": "2.0"},
-        "extensionsUsed": ["EXT_meshopt_compression"],
-        "extensionsRequired": ["EXT_meshopt_compression"],
-        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-        "buffers": [{"byteLength": bin.len()},
-            {"byteLength": 140, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}],
-        "bufferViews": [
-            {"buffer": 1, "byteOffset": 0, "byteLength": 128, "byteStride": 32, "target": 34962,
-             "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": 0,
-                "byteLength": vertex_data.len(), "byteStride": 32, "count": 4, "mode": "ATTRIBUTES"}}},
-            {"buffer": 1, "byteOffset": 128, "byteLength": 12, "target": 34963,
-             "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": index_offset,
-                "byteLength": index_data.len(), "byteStride": 2, "count": 6, "mode": "TRIANGLES"}}}
-        ],
-        "accessors": [
-            {"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 4, "type": "VEC3",
-             "min": [0, 0, 0], "max": [1, 1, 0]},
-            {"bufferView": 0, "byteOffset": 12, "componentType": 5126, "count": 4, "type": "VEC3"},
-            {"bufferView": 0, "byteOffset": 24, "componentType": 5126, "count": 4, "type": "VEC2"},
-            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}
-        ],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
-            "indices": 3, "material": 0}]}],
-        "materials": normal_mapped(0),
-    });
-    texture_stub(&mut doc);
-    let text = serde_json::to_string(&doc).unwrap();
-    let input = tspace::scene::gltf::glb::write(text.as_bytes(), Some(&bin), &[]).unwrap();
+    let input = common::scene::meshopt_quad();
     let done = process_glb(&input, SceneOptions::default());
     assert_eq!(done.report.primitives[0].action, "generated");
     let bytes = done.bytes.unwrap();

@@ -100,3 +100,54 @@ pub fn texture_stub(doc: &mut Value) {
     doc["images"] = json!([{"uri": "data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDwAEhQGAhKmMIQAAAABJRU5ErkJggg=="}]);
     doc["textures"] = json!([{"source": 0}]);
 }
+
+/// A normal-mapped unit quad whose interleaved vertices and indices are compressed by
+/// meshoptimizer and whose file requires EXT_meshopt_compression, as a GLB.
+pub fn meshopt_quad() -> Vec<u8> {
+    let positions = [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+    let uvs = [[0f32, 0.], [1., 0.], [1., 1.], [0., 1.]];
+    let vertices: Vec<[f32; 8]> = (0..4)
+        .map(|v| {
+            let [x, y, z] = positions[v];
+            let [s, t] = uvs[v];
+            [x, y, z, 0., 0., 1., s, t]
+        })
+        .collect();
+    let indices = [0u32, 1, 2, 0, 2, 3];
+    let vertex_data = meshopt::encode_vertex_buffer(&vertices).unwrap();
+    let index_data = meshopt::encode_index_buffer(&indices, 4).unwrap();
+    let mut bin = vertex_data.clone();
+    bin.resize(bin.len().div_ceil(4) * 4, 0);
+    let index_offset = bin.len();
+    bin.extend_from_slice(&index_data);
+    bin.resize(bin.len().div_ceil(4) * 4, 0);
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["EXT_meshopt_compression"],
+        "extensionsRequired": ["EXT_meshopt_compression"],
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "buffers": [{"byteLength": bin.len()},
+            {"byteLength": 140, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}],
+        "bufferViews": [
+            {"buffer": 1, "byteOffset": 0, "byteLength": 128, "byteStride": 32, "target": 34962,
+             "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": 0,
+                "byteLength": vertex_data.len(), "byteStride": 32, "count": 4, "mode": "ATTRIBUTES"}}},
+            {"buffer": 1, "byteOffset": 128, "byteLength": 12, "target": 34963,
+             "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": index_offset,
+                "byteLength": index_data.len(), "byteStride": 2, "count": 6, "mode": "TRIANGLES"}}}
+        ],
+        "accessors": [
+            {"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 0, "byteOffset": 12, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 0, "byteOffset": 24, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
+            "indices": 3, "material": 0}]}],
+        "materials": [{"normalTexture": {"index": 0}}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "normal.png"}],
+    });
+    tspace::scene::gltf::glb::write(&serde_json::to_vec(&doc).unwrap(), Some(&bin), &[]).unwrap()
+}
