@@ -498,6 +498,9 @@ pub fn write(
 
     // Images to embed: a GLB must carry its images, so external ones become buffer views.
     let mut image_views: Vec<(usize, usize, &'static str)> = Vec::new(); // (image, new view, mime)
+    // Bytes of the embedded images that came from outside the file (not data: URIs), for the
+    // report's input size.
+    let mut embedded_image_bytes = 0u64;
     let mut image_data: Vec<Vec<u8>> = Vec::new();
     if format == OutputFormat::Glb {
         for (i, image) in root
@@ -511,10 +514,10 @@ pub fn write(
                 continue;
             };
             // A data: URI in a GLB draws a validator warning; its bytes belong in the BIN chunk.
-            let fetched = match uri::decode_data_uri(u) {
-                Some(Ok(data)) => Ok(std::borrow::Cow::Owned(data.bytes)),
+            let (fetched, external) = match uri::decode_data_uri(u) {
+                Some(Ok(data)) => (Ok(std::borrow::Cow::Owned(data.bytes)), false),
                 Some(Err(_)) => continue,
-                None => resources.fetch(u),
+                None => (resources.fetch(u), true),
             };
             match fetched {
                 Ok(bytes) => {
@@ -531,6 +534,9 @@ pub fn write(
                         .or_else(|| sniff_image(&bytes));
                     match mime {
                         Some(mime) => {
+                            if external {
+                                embedded_image_bytes += bytes.len() as u64;
+                            }
                             image_views.push((i, image_data.len(), mime));
                             image_data.push(bytes.into_owned());
                         }
@@ -888,17 +894,6 @@ pub fn write(
         .map_err(|e| SceneError::too_large("output-too-large", format!("the output {e}")))?,
         OutputFormat::GltfEmbedded => json_text.into_bytes(),
     };
-    let embedded_image_bytes = image_views
-        .iter()
-        .filter(|(i, _, _)| {
-            images
-                .get(*i)
-                .and_then(|im| im.get("uri"))
-                .and_then(Node::as_str)
-                .is_some_and(|u| uri::decode_data_uri(u).is_none())
-        })
-        .map(|&(_, d, _)| image_data.get(d).map_or(0, |d| d.len() as u64))
-        .sum();
     Ok(Written {
         bytes,
         embedded_image_bytes,
