@@ -32,6 +32,10 @@ pub struct ServeArgs {
     /// Jobs that may wait for a worker; beyond that, requests get 503 at once.
     #[arg(long, env = "TSPACE_QUEUE", default_value_t = 16)]
     pub queue: usize,
+    /// Request bodies that may be arriving at once (default: 4 × (concurrency + queue)); beyond
+    /// that, requests get 503 before their body is buffered.
+    #[arg(long, env = "TSPACE_UPLOADS")]
+    pub uploads: Option<usize>,
     /// Seconds a request may take before it is answered with 504.
     #[arg(long, env = "TSPACE_TIMEOUT", default_value_t = 120)]
     pub timeout: u64,
@@ -51,6 +55,9 @@ pub struct ServerConfig {
     pub max_triangles: usize,
     pub concurrency: usize,
     pub queue: usize,
+    /// Request bodies that may be in reception at once: with the pool's own jobs, this bounds
+    /// how many bodies the server holds, whatever the number of connections.
+    pub uploads: usize,
     pub timeout: Duration,
     /// How long a request body may take to arrive.
     pub read_timeout: Duration,
@@ -66,6 +73,7 @@ impl ServerConfig {
             max_triangles: 16_000_000,
             concurrency: 2,
             queue: 4,
+            uploads: 16,
             timeout: Duration::from_secs(60),
             read_timeout: Duration::from_secs(30),
             log_format: LogFormat::Text,
@@ -76,12 +84,19 @@ impl ServerConfig {
 impl From<ServeArgs> for ServerConfig {
     fn from(args: ServeArgs) -> Self {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let concurrency = args.concurrency.unwrap_or(cores).max(1);
         ServerConfig {
             addr: args.addr,
             body_limit: args.body_limit,
             max_triangles: args.max_triangles,
-            concurrency: args.concurrency.unwrap_or(cores).max(1),
+            concurrency,
             queue: args.queue,
+            // Slow clients hold an upload slot until the read timeout; four per job the pool can
+            // hold keeps a few of them from refusing everyone else.
+            uploads: args
+                .uploads
+                .unwrap_or(4 * (concurrency + args.queue))
+                .max(1),
             timeout: Duration::from_secs(args.timeout.max(1)),
             read_timeout: Duration::from_secs(args.read_timeout.max(1)),
             log_format: args.log_format,

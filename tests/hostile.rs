@@ -8,7 +8,7 @@ mod common;
 
 use common::fixture;
 
-use common::scene::{Builder, normal_mapped, texture_stub};
+use common::scene::{Builder, grid, normal_mapped, texture_stub};
 use reqwest::multipart::{Form, Part};
 use serde_json::{Value, json};
 use std::process::Command;
@@ -299,63 +299,31 @@ fn every_hostile_file_gets_exit_code_3_or_0_on_the_command_line() {
 #[cfg(target_os = "linux")]
 #[test]
 fn peak_memory_stays_bounded_by_the_body_size() {
-    use std::io::{BufRead, BufReader, Read, Write};
+    use common::process::{ServerProcess, status_line};
     const LIMIT: usize = 24 << 20;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tspace"))
-        .args([
-            "serve",
-            "--addr",
-            "127.0.0.1:0",
-            "--concurrency",
-            "2",
-            "--queue",
-            "2",
-        ])
-        .args(["--body-limit", &LIMIT.to_string()])
-        .env("TSPACE_LOG", "info")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let addr = loop {
-        let line = lines.next().expect("the server logs its address").unwrap();
-        if let Some(rest) = line.split("addr=").nth(1) {
-            break rest.split_whitespace().next().unwrap().to_owned();
-        }
-    };
+    let server = ServerProcess::start(&[
+        "--concurrency",
+        "2",
+        "--queue",
+        "2",
+        "--body-limit",
+        &LIMIT.to_string(),
+    ]);
     let post = |body: &[u8], content_type: &str| -> String {
-        let mut stream = std::net::TcpStream::connect(&addr).unwrap();
-        let head = format!(
-            "POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
-            body.len()
-        );
-        stream.write_all(head.as_bytes()).unwrap();
-        let _ = stream.write_all(body);
-        let mut response = Vec::new();
-        let _ = stream.read_to_end(&mut response);
-        String::from_utf8_lossy(&response[..response.len().min(200)]).into_owned()
+        status_line(&server.post("/v1/tangents", body, content_type))
     };
-    let peak = |pid: u32| -> usize {
-        let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
-        let kb: usize = status
-            .lines()
-            .find_map(|l| l.strip_prefix("VmHWM:"))
-            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
-            .unwrap();
-        kb * 1024
-    };
-    let idle = peak(child.id());
+    let peak = || server.memory("VmHWM");
+    let idle = peak();
     // The largest body the server accepts: a normal-mapped grid just under the limit.
     let mut n = 100;
-    let mut body = grid_glb(n);
+    let mut body = grid(n);
     while body.len() < LIMIT * 3 / 4 {
         n += 100;
-        body = grid_glb(n);
+        body = grid(n);
     }
     let answer = post(&body, "model/gltf-binary");
     assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
-    let after_scene = peak(child.id());
+    let after_scene = peak();
     let over = post(&vec![b' '; LIMIT + 1], "model/obj");
     assert!(over.starts_with("HTTP/1.1 413"), "{over}");
     // Every hostile input but the JSON-heavy one: none may raise the peak a real scene set.
@@ -369,11 +337,10 @@ fn peak_memory_stays_bounded_by_the_body_size() {
             post(&bytes, content_type);
         }
     }
-    let after_hostile = peak(child.id());
+    let after_hostile = peak();
     post(&json_heavy, "model/gltf-binary");
-    let after_json = peak(child.id());
-    let _ = child.kill();
-    let _ = child.wait();
+    let after_json = peak();
+    drop(server);
     let scene_ratio = (after_scene - idle) as f64 / body.len() as f64;
     let json_ratio = (after_json - idle) as f64 / json_heavy.len() as f64;
     eprintln!(
@@ -404,52 +371,4 @@ fn peak_memory_stays_bounded_by_the_body_size() {
         json_ratio < 150.0,
         "a JSON-heavy scene's peak grew {json_ratio:.0} times its size"
     );
-}
-
-/// A normal-mapped grid of `2 n²` triangles.
-fn grid_glb(n: usize) -> Vec<u8> {
-    let mut positions = Vec::new();
-    let mut uvs = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
-            positions.extend([u, v, 0.0]);
-            uvs.extend([u, v]);
-        }
-    }
-    let row = (n + 1) as u32;
-    let mut indices: Vec<u32> = Vec::new();
-    for j in 0..n as u32 {
-        for i in 0..n as u32 {
-            let v = j * row + i;
-            indices.extend([v, v + 1, v + row + 1, v, v + row + 1, v + row]);
-        }
-    }
-    let mut b = Builder::default();
-    let position = b.floats(&positions, "VEC3", true);
-    let normal = b.floats(
-        &vec![0.0; positions.len()]
-            .iter()
-            .enumerate()
-            .map(|(i, _)| if i % 3 == 2 { 1.0 } else { 0.0 })
-            .collect::<Vec<f32>>(),
-        "VEC3",
-        false,
-    );
-    let uv = b.floats(&uvs, "VEC2", false);
-    while b.bin.len() % 4 != 0 {
-        b.bin.push(0);
-    }
-    let offset = b.bin.len();
-    b.bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
-    b.views
-        .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": indices.len() * 4}));
-    b.accessors.push(json!({"bufferView": b.views.len() - 1, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}));
-    let index = b.accessors.len() - 1;
-    let mut doc = json!({
-        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal, "TEXCOORD_0": uv}, "indices": index, "material": 0}]}],
-        "materials": normal_mapped(0),
-    });
-    texture_stub(&mut doc);
-    glb(&b.document(doc), &b.bin)
 }

@@ -5,7 +5,7 @@ mod common;
 
 use common::fixture;
 
-use common::scene::{Builder, normal_mapped, texture_stub};
+use common::scene::grid;
 use reqwest::multipart::{Form, Part};
 use serde_json::{Value, json};
 use std::time::Duration;
@@ -20,54 +20,6 @@ async fn server(config: ServerConfig) -> (Running, String) {
 
 fn client() -> reqwest::Client {
     reqwest::Client::builder().build().unwrap()
-}
-
-/// A normal-mapped grid of `2 n²` triangles, as a GLB.
-fn grid(n: usize) -> Vec<u8> {
-    let mut positions = Vec::with_capacity((n + 1) * (n + 1) * 3);
-    let mut normals = Vec::with_capacity(positions.capacity());
-    let mut uvs = Vec::with_capacity((n + 1) * (n + 1) * 2);
-    for j in 0..=n {
-        for i in 0..=n {
-            let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
-            positions.extend([u, v, (u * 7.0).sin() * 0.1]);
-            normals.extend([0.0, 0.0, 1.0]);
-            uvs.extend([u, v]);
-        }
-    }
-    let mut indices: Vec<u32> = Vec::with_capacity(n * n * 6);
-    let row = (n + 1) as u32;
-    for j in 0..n as u32 {
-        for i in 0..n as u32 {
-            let v = j * row + i;
-            indices.extend([v, v + 1, v + row + 1, v, v + row + 1, v + row]);
-        }
-    }
-    let mut b = Builder::default();
-    let position = b.floats(&positions, "VEC3", true);
-    let normal = b.floats(&normals, "VEC3", false);
-    let uv = b.floats(&uvs, "VEC2", false);
-    // u32 indices: the builder only writes u16, so add this view by hand.
-    while b.bin.len() % 4 != 0 {
-        b.bin.push(0);
-    }
-    let offset = b.bin.len();
-    b.bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
-    b.views
-        .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": indices.len() * 4}));
-    b.accessors.push(
-        json!({"bufferView": b.views.len() - 1, "componentType": 5125,
-        "count": indices.len(), "type": "SCALAR"}),
-    );
-    let index = b.accessors.len() - 1;
-    let mut doc = json!({
-        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
-            "TEXCOORD_0": uv}, "indices": index, "material": 0}]}],
-        "materials": normal_mapped(0),
-    });
-    texture_stub(&mut doc);
-    b.glb(doc)
 }
 
 /// The report summary a response carries in `X-Tspace-Report`.
@@ -416,6 +368,56 @@ async fn a_full_queue_sheds_load_and_recovers() {
     running.shutdown().await.unwrap();
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let config = ServerConfig {
+        uploads: 1,
+        read_timeout: Duration::from_millis(800),
+        ..ServerConfig::local()
+    };
+    let (running, base) = server(config).await;
+    // A trickling client holds the one upload slot.
+    let mut slow = tokio::net::TcpStream::connect(running.addr).await.unwrap();
+    slow.write_all(b"POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/obj\r\nContent-Length: 1000\r\n\r\nv 0 0 0\n")
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    // A whole body sent at once: read and thrown away, so the client gets its 503, not a reset.
+    let refused = client()
+        .post(format!("{base}/v1/tangents"))
+        .body(grid(100))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(refused.headers()["retry-after"], "1");
+    problem(refused, 503, "overloaded").await;
+    // A client waiting for 100 Continue is answered without being asked for its body.
+    let mut polite = tokio::net::TcpStream::connect(running.addr).await.unwrap();
+    polite
+        .write_all(b"POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/obj\r\nContent-Length: 100000\r\nExpect: 100-continue\r\n\r\n")
+        .await
+        .unwrap();
+    let mut head = vec![0u8; 12];
+    tokio::time::timeout(Duration::from_secs(5), polite.read_exact(&mut head))
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(&head, b"HTTP/1.1 503", "{}", String::from_utf8_lossy(&head));
+    // The slow client times out and frees the slot; uploads are taken again.
+    let mut answer = Vec::new();
+    let _ = tokio::time::timeout(Duration::from_secs(5), slow.read_to_end(&mut answer)).await;
+    assert!(String::from_utf8_lossy(&answer).starts_with("HTTP/1.1 408"));
+    let response = client()
+        .post(format!("{base}/v1/tangents"))
+        .body(grid(4))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    running.shutdown().await.unwrap();
+}
+
 /// Awaits every future, in order (no extra dependency for `join_all`).
 async fn futures_join_all<F>(futures: impl Iterator<Item = F>) -> Vec<F::Output>
 where
@@ -582,7 +584,21 @@ async fn clients_that_vanish_leave_nothing_behind() {
     upload.write_all(head(body.len()).as_bytes()).await.unwrap();
     upload.write_all(&body[..body.len() / 2]).await.unwrap();
     drop(upload);
-    // Gone mid-download: the whole body, then the connection closes before the answer.
+    // Gone mid-download: the answer has begun (status line and the first 64 KiB of a scene of
+    // several MB), then the connection closes.
+    let mut download = tokio::net::TcpStream::connect(running.addr).await.unwrap();
+    download
+        .write_all(head(body.len()).as_bytes())
+        .await
+        .unwrap();
+    download.write_all(&body).await.unwrap();
+    let mut first = vec![0u8; 64 << 10];
+    tokio::io::AsyncReadExt::read_exact(&mut download, &mut first)
+        .await
+        .unwrap();
+    assert!(first.starts_with(b"HTTP/1.1 200"));
+    drop(download);
+    // Gone before the answer: the whole body, then the connection closes.
     for _ in 0..3 {
         let mut download = tokio::net::TcpStream::connect(running.addr).await.unwrap();
         download

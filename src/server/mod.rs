@@ -40,6 +40,22 @@ pub struct App {
     pub metrics: Metrics,
     /// Set when shutdown begins: `/readyz` then answers 503.
     pub draining: AtomicBool,
+    /// Uploads being received at once. A request body is buffered whole before its job is
+    /// queued, so without this bound a burst of clients could make the server hold one body per
+    /// connection; with it, at most this many bodies are in reception besides the pool's jobs.
+    pub uploads: Arc<tokio::sync::Semaphore>,
+}
+
+impl App {
+    pub fn new(config: ServerConfig) -> std::io::Result<Self> {
+        Ok(App {
+            pool: WorkerPool::new(config.concurrency, config.queue)?,
+            uploads: Arc::new(tokio::sync::Semaphore::new(config.uploads.max(1))),
+            config,
+            metrics: Metrics::default(),
+            draining: AtomicBool::new(false),
+        })
+    }
 }
 
 const REQUEST_ID: HeaderName = HeaderName::from_static("x-request-id");
@@ -162,12 +178,7 @@ impl Running {
 pub async fn start(config: ServerConfig) -> std::io::Result<Running> {
     let listener = TcpListener::bind(config.addr).await?;
     let addr = listener.local_addr()?;
-    let app = Arc::new(App {
-        pool: WorkerPool::new(config.concurrency, config.queue)?,
-        config,
-        metrics: Metrics::default(),
-        draining: AtomicBool::new(false),
-    });
+    let app = Arc::new(App::new(config)?);
     let (sender, receiver) = oneshot::channel::<()>();
     let service = router(Arc::clone(&app));
     let handle = tokio::spawn(async move {
@@ -236,6 +247,7 @@ pub fn run(config: ServerConfig) -> std::io::Result<()> {
             addr = %running.addr,
             concurrency = config.concurrency,
             queue = config.queue,
+            uploads = config.uploads,
             body_limit = config.body_limit,
             "tspace listening"
         );

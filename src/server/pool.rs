@@ -60,6 +60,11 @@ impl WorkerPool {
             .saturating_sub(self.running.load(Ordering::Acquire))
     }
 
+    /// Whether [`WorkerPool::submit`] would refuse a job now.
+    pub fn is_full(&self) -> bool {
+        self.admitted.load(Ordering::Acquire) >= self.capacity
+    }
+
     pub fn running(&self) -> usize {
         self.running.load(Ordering::Acquire)
     }

@@ -240,8 +240,17 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
 
 /// [`read_upload`] within the request timeout, so that a client trickling its body in
 /// (slowloris) holds a connection, never a worker, and not for long.
+///
+/// When the pool is already full, or as many uploads as it holds are already arriving, the
+/// request is refused with 503 before its body is buffered.
 async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Problem> {
-    match tokio::time::timeout(app.config.read_timeout, read_upload(app, request)).await {
+    let permit = match Arc::clone(&app.uploads).try_acquire_owned() {
+        Ok(permit) if !app.pool.is_full() => permit,
+        _ => return Err(shed_unread(app, request).await),
+    };
+    let upload = tokio::time::timeout(app.config.read_timeout, read_upload(app, request)).await;
+    drop(permit);
+    match upload {
         Ok(upload) => upload,
         Err(_) => {
             app.metrics.reject("slow_upload");
@@ -255,6 +264,35 @@ async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Prob
             ))
         }
     }
+}
+
+/// The 503 for a request refused before its body was read. The body is still read and thrown
+/// away (up to the body limit, within the read timeout), unless the client waits for
+/// `100 Continue` and so has not sent it: a server that answers and closes while the body is
+/// unread makes the client's kernel see a reset, and the client an I/O error instead of the
+/// 503 and its Retry-After.
+async fn shed_unread(app: &App, request: Request) -> Problem {
+    use http_body_util::BodyExt;
+    app.metrics.reject("overloaded");
+    let waits_for_continue = request
+        .headers()
+        .get(header::EXPECT)
+        .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
+    if !waits_for_continue {
+        let limit = app.config.body_limit;
+        let mut body = request.into_body();
+        let drain = async {
+            let mut seen = 0usize;
+            while let Some(Ok(frame)) = body.frame().await {
+                seen += frame.data_ref().map_or(0, |d| d.len());
+                if seen > limit {
+                    break;
+                }
+            }
+        };
+        let _ = tokio::time::timeout(app.config.read_timeout, drain).await;
+    }
+    Problem::overloaded()
 }
 
 /// Runs the scene on the pool, within the time limit.
@@ -535,19 +573,15 @@ pub struct ApiDoc;
 mod tests {
     use super::*;
     use crate::config::ServerConfig;
-    use crate::server::metrics::Metrics;
-    use crate::server::pool::WorkerPool;
-    use std::sync::atomic::AtomicBool;
 
     #[tokio::test]
     async fn a_panicking_job_is_a_500_and_the_pool_serves_on() {
-        let config = ServerConfig::local();
-        let app = Arc::new(App {
-            pool: WorkerPool::new(1, 0).unwrap(),
-            config,
-            metrics: Metrics::default(),
-            draining: AtomicBool::new(false),
-        });
+        let config = ServerConfig {
+            concurrency: 1,
+            queue: 0,
+            ..ServerConfig::local()
+        };
+        let app = Arc::new(App::new(config).unwrap());
         let problem = run_job(&app, || -> u8 { panic!("index out of bounds") })
             .await
             .err()

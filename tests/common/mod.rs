@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod meshes;
+pub mod process;
 pub mod scene;
 #[path = "../../benches/shapes.rs"]
 pub mod shapes;

@@ -64,6 +64,15 @@ impl Builder {
         self.accessors.len() - 1
     }
 
+    pub fn indices_u32(&mut self, values: &[u32]) -> usize {
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(&bytes, None);
+        self.accessors
+            .push(json!({"bufferView": view, "componentType": 5125,
+            "count": values.len(), "type": "SCALAR"}));
+        self.accessors.len() - 1
+    }
+
     /// Normalized unsigned bytes, VEC3 (3-byte elements, so the view has a 4-byte stride).
     pub fn colors_u8(&mut self, values: &[[u8; 3]]) -> usize {
         let bytes: Vec<u8> = values.iter().flat_map(|c| [c[0], c[1], c[2], 0]).collect();
@@ -99,6 +108,43 @@ pub fn texture_stub(doc: &mut Value) {
     // A 1x1 PNG as a data URI keeps the document self-contained for the validator.
     doc["images"] = json!([{"uri": "data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDwAEhQGAhKmMIQAAAABJRU5ErkJggg=="}]);
     doc["textures"] = json!([{"source": 0}]);
+}
+
+/// A normal-mapped, gently waved unit grid of `2 n²` triangles with u32 indices, as a GLB: the
+/// stand-in for a real scene in service tests and benches.
+pub fn grid(n: usize) -> Vec<u8> {
+    let mut positions = Vec::with_capacity((n + 1) * (n + 1) * 3);
+    let mut normals = Vec::with_capacity(positions.capacity());
+    let mut uvs = Vec::with_capacity((n + 1) * (n + 1) * 2);
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+            positions.extend([u, v, (u * 7.0).sin() * 0.1]);
+            normals.extend([0.0, 0.0, 1.0]);
+            uvs.extend([u, v]);
+        }
+    }
+    let mut indices: Vec<u32> = Vec::with_capacity(n * n * 6);
+    let row = (n + 1) as u32;
+    for j in 0..n as u32 {
+        for i in 0..n as u32 {
+            let v = j * row + i;
+            indices.extend([v, v + 1, v + row + 1, v, v + row + 1, v + row]);
+        }
+    }
+    let mut b = Builder::default();
+    let position = b.floats(&positions, "VEC3", true);
+    let normal = b.floats(&normals, "VEC3", false);
+    let uv = b.floats(&uvs, "VEC2", false);
+    let index = b.indices_u32(&indices);
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
+            "TEXCOORD_0": uv}, "indices": index, "material": 0}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    b.glb(doc)
 }
 
 /// A normal-mapped unit quad whose interleaved vertices and indices are compressed by

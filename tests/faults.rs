@@ -1,0 +1,100 @@
+//! Faults a real process must survive: SIGTERM while it is busy. (Clients that vanish, slow
+//! uploads and overload are in tests/http.rs, against a server in the test's own process.)
+
+#[allow(unused_imports)]
+mod common;
+
+use common::process::{ServerProcess, status_line};
+use common::scene::grid;
+use std::time::{Duration, Instant};
+
+/// The jobs gauges (queued, running) from /metrics.
+fn jobs(server: &ServerProcess) -> Option<(u64, u64)> {
+    use std::io::{Read, Write};
+    let mut stream = std::net::TcpStream::connect(&server.addr).ok()?;
+    stream
+        .write_all(b"GET /metrics HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n")
+        .ok()?;
+    let mut text = String::new();
+    stream.read_to_string(&mut text).ok()?;
+    let value = |name: &str| -> Option<u64> {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.trim().parse().ok())
+    };
+    Some((
+        value("tspace_jobs_queued ")?,
+        value("tspace_jobs_running ")?,
+    ))
+}
+
+/// SIGTERM while one job runs and others wait: every accepted request still gets its whole
+/// answer, new connections are refused, and the process exits 0.
+#[cfg(unix)]
+#[test]
+fn sigterm_under_load_finishes_accepted_work_and_refuses_new() {
+    let server = ServerProcess::start(&["--concurrency", "1", "--queue", "8"]);
+    // Big enough that the five jobs queue up behind the one worker before the first finishes.
+    let body = grid(400);
+    let accepted = 5;
+    let clients: Vec<_> = (0..accepted)
+        .map(|_| {
+            let body = body.clone();
+            let addr = server.addr.clone();
+            std::thread::spawn(move || {
+                use std::io::{Read, Write};
+                let mut stream = std::net::TcpStream::connect(&addr).unwrap();
+                let head = format!(
+                    "POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/gltf-binary\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+                    body.len()
+                );
+                stream.write_all(head.as_bytes()).unwrap();
+                stream.write_all(&body).unwrap();
+                let mut response = Vec::new();
+                stream.read_to_end(&mut response).unwrap();
+                response
+            })
+        })
+        .collect();
+    // Wait until the work is on the pool: one running, the rest queued.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let (queued, running) = jobs(&server).unwrap_or((0, 0));
+        if running == 1 && queued + running == accepted {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the jobs never queued up: {queued} queued, {running} running"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    server.terminate();
+    // New connections are refused while the accepted work drains.
+    std::thread::sleep(Duration::from_millis(50));
+    let refused_at = Instant::now();
+    let late = std::net::TcpStream::connect(&server.addr);
+    assert!(late.is_err(), "a connection was accepted after SIGTERM");
+    let mut finished = Vec::new();
+    for client in clients {
+        finished.push(client.join().unwrap());
+    }
+    let drained_for = refused_at.elapsed();
+    for response in &finished {
+        assert_eq!(status_line(response), "HTTP/1.1 200 OK");
+        let scene = &response[response.windows(4).position(|w| w == b"\r\n\r\n").unwrap() + 4..];
+        let parsed = tspace::scene::gltf::glb::parse(scene).expect("a whole GLB");
+        assert!(parsed.json.len() > 100);
+    }
+    let mut server = server;
+    let status = server
+        .wait(Duration::from_secs(20))
+        .expect("the process exits after draining");
+    assert!(status.success(), "{status:?}");
+    let logs = server.logs().join("\n");
+    assert!(logs.contains("shutting down"), "{logs}");
+    eprintln!(
+        "SIGTERM with {accepted} accepted requests: all answered 200 within {:.0} ms of the refusal; exit {status}",
+        drained_for.as_secs_f64() * 1e3
+    );
+}
