@@ -32,14 +32,16 @@ pub struct ServeArgs {
     /// Jobs that may wait for a worker; beyond that, requests get 503 at once.
     #[arg(long, env = "TSPACE_QUEUE", default_value_t = 16)]
     pub queue: usize,
-    /// Request bodies that may be arriving at once (default: 4 × (concurrency + queue)); beyond
-    /// that, requests get 503 before their body is buffered.
-    #[arg(long, env = "TSPACE_UPLOADS")]
-    pub uploads: Option<usize>,
+    /// Scene requests in progress at once, from the first byte of the body to the last byte of
+    /// the answer (default: 4 × (concurrency + queue)); beyond that, requests get 503 before
+    /// their body is buffered.
+    #[arg(long, env = "TSPACE_IN_FLIGHT")]
+    pub in_flight: Option<usize>,
     /// Seconds a request may take before it is answered with 504.
     #[arg(long, env = "TSPACE_TIMEOUT", default_value_t = 120)]
     pub timeout: u64,
-    /// Seconds a client may take to send its request body; a slower one gets 408.
+    /// Seconds a client may take to send its request body (a slower one gets 408), and may go
+    /// without reading any of its answer (then it is disconnected).
     #[arg(long, env = "TSPACE_READ_TIMEOUT", default_value_t = 30)]
     pub read_timeout: u64,
     /// Log format.
@@ -55,9 +57,9 @@ pub struct ServerConfig {
     pub max_triangles: usize,
     pub concurrency: usize,
     pub queue: usize,
-    /// Request bodies that may be in reception at once: with the pool's own jobs, this bounds
-    /// how many bodies the server holds, whatever the number of connections.
-    pub uploads: usize,
+    /// Scene requests in progress at once (receiving, waiting, running or sending): this
+    /// bounds how many uploads and answers the server holds, whatever the number of connections.
+    pub in_flight: usize,
     pub timeout: Duration,
     /// How long a request body may take to arrive.
     pub read_timeout: Duration,
@@ -73,7 +75,7 @@ impl ServerConfig {
             max_triangles: 16_000_000,
             concurrency: 2,
             queue: 4,
-            uploads: 16,
+            in_flight: 16,
             timeout: Duration::from_secs(60),
             read_timeout: Duration::from_secs(30),
             log_format: LogFormat::Text,
@@ -91,10 +93,10 @@ impl From<ServeArgs> for ServerConfig {
             max_triangles: args.max_triangles,
             concurrency,
             queue: args.queue,
-            // Slow clients hold an upload slot until the read timeout; four per job the pool can
-            // hold keeps a few of them from refusing everyone else.
-            uploads: args
-                .uploads
+            // Slow clients hold a slot until the read timeout; four per job the pool can hold
+            // keeps a few of them from refusing everyone else.
+            in_flight: args
+                .in_flight
                 .unwrap_or(4 * (concurrency + args.queue))
                 .max(1),
             timeout: Duration::from_secs(args.timeout.max(1)),

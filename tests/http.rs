@@ -372,7 +372,7 @@ async fn a_full_queue_sheds_load_and_recovers() {
 async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     let config = ServerConfig {
-        uploads: 1,
+        in_flight: 1,
         read_timeout: Duration::from_millis(800),
         ..ServerConfig::local()
     };
@@ -415,6 +415,67 @@ async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
         .await
         .unwrap();
     assert_eq!(response.status(), 200);
+    running.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_stops_reading_is_cut_off_and_frees_its_slot() {
+    use tokio::io::AsyncWriteExt;
+    let config = ServerConfig {
+        in_flight: 1,
+        read_timeout: Duration::from_millis(500),
+        ..ServerConfig::local()
+    };
+    let (running, base) = server(config).await;
+    // A tiny receive window, and nothing read: the server's writes of a 12 MB answer stall.
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let mut reader = socket.connect(running.addr).await.unwrap();
+    let body = grid(400);
+    reader
+        .write_all(
+            format!(
+                "POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/gltf-binary\r\nContent-Length: {}\r\n\r\n",
+                body.len()
+            )
+            .as_bytes(),
+        )
+        .await
+        .unwrap();
+    reader.write_all(&body).await.unwrap();
+    // While the answer is stuck, the one in-flight slot is taken.
+    let mut refused = false;
+    for _ in 0..100 {
+        let response = client()
+            .post(format!("{base}/v1/analyze"))
+            .body(grid(2))
+            .send()
+            .await
+            .unwrap();
+        if response.status() == 503 {
+            refused = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert!(refused, "the stuck answer never held the slot");
+    // After the stall limit the connection is dropped, and the slot with it.
+    let mut answered = false;
+    for _ in 0..100 {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+        let response = client()
+            .post(format!("{base}/v1/analyze"))
+            .body(grid(2))
+            .send()
+            .await
+            .unwrap();
+        if response.status() == 200 {
+            answered = true;
+            break;
+        }
+    }
+    assert!(answered, "the stuck reader kept its slot");
+    drop(reader);
     running.shutdown().await.unwrap();
 }
 

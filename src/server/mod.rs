@@ -4,10 +4,12 @@
 //! Routes: `POST /v1/tangents`, `POST /v1/analyze`, `GET /healthz`, `GET /readyz`,
 //! `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
 
+mod held;
 pub mod metrics;
 pub mod pool;
 pub mod problem;
 mod routes;
+mod stall;
 
 use crate::config::{LogFormat, ServerConfig};
 use axum::Router;
@@ -40,17 +42,18 @@ pub struct App {
     pub metrics: Metrics,
     /// Set when shutdown begins: `/readyz` then answers 503.
     pub draining: AtomicBool,
-    /// Uploads being received at once. A request body is buffered whole before its job is
-    /// queued, so without this bound a burst of clients could make the server hold one body per
-    /// connection; with it, at most this many bodies are in reception besides the pool's jobs.
-    pub uploads: Arc<tokio::sync::Semaphore>,
+    /// Scene requests in progress, from the body's first byte to the answer's last. A body is
+    /// buffered whole before its job is queued, and an answer is held until the client has read
+    /// it, so without this bound a burst of clients, or slow readers, could make the server hold
+    /// one scene per connection.
+    pub in_flight: Arc<tokio::sync::Semaphore>,
 }
 
 impl App {
     pub fn new(config: ServerConfig) -> std::io::Result<Self> {
         Ok(App {
             pool: WorkerPool::new(config.concurrency, config.queue)?,
-            uploads: Arc::new(tokio::sync::Semaphore::new(config.uploads.max(1))),
+            in_flight: Arc::new(tokio::sync::Semaphore::new(config.in_flight.max(1))),
             config,
             metrics: Metrics::default(),
             draining: AtomicBool::new(false),
@@ -181,6 +184,10 @@ pub async fn start(config: ServerConfig) -> std::io::Result<Running> {
     let app = Arc::new(App::new(config)?);
     let (sender, receiver) = oneshot::channel::<()>();
     let service = router(Arc::clone(&app));
+    let listener = stall::GuardedListener {
+        inner: listener,
+        stall: app.config.read_timeout,
+    };
     let handle = tokio::spawn(async move {
         axum::serve(listener, service)
             .with_graceful_shutdown(async {
@@ -247,7 +254,7 @@ pub fn run(config: ServerConfig) -> std::io::Result<()> {
             addr = %running.addr,
             concurrency = config.concurrency,
             queue = config.queue,
-            uploads = config.uploads,
+            in_flight = config.in_flight,
             body_limit = config.body_limit,
             "tspace listening"
         );

@@ -1,6 +1,7 @@
 //! The handlers: read the request (raw body or multipart), hand the scene to the worker pool,
 //! and turn its answer into a response.
 
+use super::held::HeldBody;
 use super::problem::{CODES, Problem};
 use super::{App, content_type};
 use crate::scene::gltf::write::OutputFormat;
@@ -14,6 +15,7 @@ use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
+use tokio::sync::OwnedSemaphorePermit;
 use utoipa::OpenApi;
 
 /// The query options of both POST routes.
@@ -238,18 +240,19 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
     })
 }
 
+/// A slot for a scene request, or the 503 when the pool is already full or as many requests as
+/// `in_flight` allows are in progress: then the request is refused before its body is buffered.
+async fn admit(app: &App, request: Request) -> Result<(Request, OwnedSemaphorePermit), Problem> {
+    match Arc::clone(&app.in_flight).try_acquire_owned() {
+        Ok(permit) if !app.pool.is_full() => Ok((request, permit)),
+        _ => Err(shed_unread(app, request).await),
+    }
+}
+
 /// [`read_upload`] within the request timeout, so that a client trickling its body in
 /// (slowloris) holds a connection, never a worker, and not for long.
-///
-/// When the pool is already full, or as many uploads as it holds are already arriving, the
-/// request is refused with 503 before its body is buffered.
 async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Problem> {
-    let permit = match Arc::clone(&app.uploads).try_acquire_owned() {
-        Ok(permit) if !app.pool.is_full() => permit,
-        _ => return Err(shed_unread(app, request).await),
-    };
     let upload = tokio::time::timeout(app.config.read_timeout, read_upload(app, request)).await;
-    drop(permit);
     match upload {
         Ok(upload) => upload,
         Err(_) => {
@@ -422,6 +425,7 @@ pub async fn tangents(
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
     let multipart = wants_multipart(request.headers());
+    let (request, permit) = admit(&app, request).await?;
     let upload = read_upload_in_time(&app, request).await?;
     let processed = run(&app, upload, scene_options(&app, &query, true)).await?;
     let bytes = processed.bytes.unwrap_or_default();
@@ -445,13 +449,13 @@ pub async fn tangents(
         );
         body.extend_from_slice(&bytes);
         body.extend_from_slice(format!("\r\n--{boundary}--\r\n").as_bytes());
-        let mut response = Response::new(Body::from(body));
+        let mut response = Response::new(Body::new(HeldBody::new(body, permit)));
         if let Ok(value) = HeaderValue::from_str(&format!("multipart/mixed; boundary={boundary}")) {
             response.headers_mut().insert(header::CONTENT_TYPE, value);
         }
         return Ok(response);
     }
-    let mut response = Response::new(Body::from(bytes));
+    let mut response = Response::new(Body::new(HeldBody::new(bytes, permit)));
     let headers = response.headers_mut();
     let (name, value) = content_type(scene_type);
     headers.insert(name, value);
@@ -486,9 +490,11 @@ pub async fn analyze(
     request: Request,
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
+    let (request, permit) = admit(&app, request).await?;
     let upload = read_upload_in_time(&app, request).await?;
     let processed = run(&app, upload, scene_options(&app, &query, false)).await?;
-    let mut response = Response::new(Body::from(processed.report.to_json_pretty()));
+    let report = processed.report.to_json_pretty();
+    let mut response = Response::new(Body::new(HeldBody::new(report, permit)));
     let (name, value) = content_type("application/json");
     response.headers_mut().insert(name, value);
     Ok(response)

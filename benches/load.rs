@@ -1,0 +1,381 @@
+//! The load test: how much a real `tspace serve` process takes, then twice that for a minute.
+//!
+//! `cargo bench --bench load`. Against the release binary on loopback, with the corpus's
+//! DamagedHelmet GLB when `../shared/corpus` is present (else a generated grid of similar size):
+//!
+//! 1. **Baseline:** one client, one request at a time, for a few seconds: the unloaded latency.
+//! 2. **Capacity:** `2 × concurrency` clients back to back (enough to keep every worker busy):
+//!    the answers per second the service sustains.
+//! 3. **Overload:** requests arrive at `TSPACE_LOAD_FACTOR` (default 2) × capacity, on a fixed
+//!    schedule whatever the answers, for `TSPACE_LOAD_SECONDS` (default 60). Only 200 and 503
+//!    may come back; accepted requests' latency is reported (p50, p99, max); the server's RSS
+//!    is sampled from /proc throughout.
+//! 4. **Recovery:** the moment arrivals stop, one client again: how long until its first 200,
+//!    and whether its latency is back to the baseline.
+//!
+//! The bench fails (exit status 101) when any other status or a connection error comes back,
+//! when the peak RSS passes the stated bound, or when recovery takes longer than the queue takes
+//! to drain plus a second. The load generator shares the machine's cores with the server, in
+//! every phase alike, so capacity is "with this generator on this machine". Results go to
+//! `bench-results/load.csv` (phases) and `bench-results/load-rss.csv` (RSS over time).
+
+#[allow(dead_code)]
+#[path = "../tests/common/process.rs"]
+mod process;
+#[allow(dead_code)]
+#[path = "../tests/common/scene.rs"]
+mod scene;
+
+use process::ServerProcess;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+fn corpus_scene() -> (String, Vec<u8>) {
+    let helmet = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/corpus/gltf_DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+    match std::fs::read(&helmet) {
+        Ok(bytes) => ("DamagedHelmet.glb".into(), bytes),
+        Err(_) => ("grid 90x90 (generated)".into(), scene::grid(90)),
+    }
+}
+
+fn env_number(name: &str, default: f64) -> f64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
+}
+
+fn percentile(sorted: &[Duration], q: f64) -> Duration {
+    if sorted.is_empty() {
+        return Duration::ZERO;
+    }
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+/// What one phase saw.
+#[derive(Default)]
+struct Phase {
+    accepted: Vec<Duration>,
+    shed: usize,
+    /// Any other status, or a failed connection: each is a failure of the test.
+    unexpected: Vec<String>,
+    seconds: f64,
+}
+
+impl Phase {
+    fn merge(&mut self, other: Phase) {
+        self.accepted.extend(other.accepted);
+        self.shed += other.shed;
+        self.unexpected.extend(other.unexpected);
+    }
+
+    fn row(&mut self, name: &str, offered: f64) -> String {
+        self.accepted.sort();
+        let ok = self.accepted.len();
+        let total = ok + self.shed + self.unexpected.len();
+        let line = format!(
+            "{name},{offered:.1},{total},{ok},{},{},{:.1},{:.2},{:.2},{:.2},{:.2}",
+            self.shed,
+            self.unexpected.len(),
+            ok as f64 / self.seconds,
+            ms(percentile(&self.accepted, 0.5)),
+            ms(percentile(&self.accepted, 0.9)),
+            ms(percentile(&self.accepted, 0.99)),
+            ms(percentile(&self.accepted, 1.0)),
+        );
+        println!(
+            "{name:>9} {offered:>9.1} {total:>8} {ok:>7} {:>6} {:>6} {:>9.1} {:>8.2} {:>8.2} {:>8.2} {:>8.2}",
+            self.shed,
+            self.unexpected.len(),
+            ok as f64 / self.seconds,
+            ms(percentile(&self.accepted, 0.5)),
+            ms(percentile(&self.accepted, 0.9)),
+            ms(percentile(&self.accepted, 0.99)),
+            ms(percentile(&self.accepted, 1.0)),
+        );
+        line
+    }
+}
+
+/// One request; its status (0 for a connection error) and latency.
+async fn request(http: &reqwest::Client, url: &str, body: bytes::Bytes) -> (u16, Duration, String) {
+    let started = Instant::now();
+    match http
+        .post(url)
+        .header("content-type", "model/gltf-binary")
+        .body(body)
+        .send()
+        .await
+    {
+        Ok(response) => {
+            let status = response.status().as_u16();
+            let read = response.bytes().await;
+            match read {
+                Ok(_) => (status, started.elapsed(), String::new()),
+                Err(e) => (0, started.elapsed(), format!("reading the answer: {e}")),
+            }
+        }
+        Err(e) => (0, started.elapsed(), format!("{e}")),
+    }
+}
+
+fn record(phase: &mut Phase, (status, latency, error): (u16, Duration, String)) {
+    match status {
+        200 => phase.accepted.push(latency),
+        503 => phase.shed += 1,
+        0 => phase.unexpected.push(error),
+        other => phase.unexpected.push(format!("status {other}")),
+    }
+}
+
+/// `clients` clients, each sending its next request when the last is answered, for `seconds`.
+async fn closed_loop(url: &str, body: &bytes::Bytes, clients: usize, seconds: f64) -> Phase {
+    let deadline = Instant::now() + Duration::from_secs_f64(seconds);
+    let tasks: Vec<_> = (0..clients)
+        .map(|_| {
+            let (url, body) = (url.to_owned(), body.clone());
+            tokio::spawn(async move {
+                let http = reqwest::Client::new();
+                let mut phase = Phase::default();
+                while Instant::now() < deadline {
+                    record(&mut phase, request(&http, &url, body.clone()).await);
+                }
+                phase
+            })
+        })
+        .collect();
+    let started = Instant::now();
+    let mut phase = Phase::default();
+    for task in tasks {
+        phase.merge(task.await.expect("a client task"));
+    }
+    phase.seconds = started.elapsed().as_secs_f64();
+    phase
+}
+
+/// Requests started every `1 / rate` s for `seconds`, whether or not earlier ones were answered.
+async fn open_loop(
+    url: &str,
+    body: &bytes::Bytes,
+    rate: f64,
+    seconds: f64,
+    limit: usize,
+) -> (Phase, usize) {
+    let http = reqwest::Client::builder()
+        .pool_max_idle_per_host(256)
+        .build()
+        .expect("a client");
+    let outstanding = Arc::new(AtomicUsize::new(0));
+    // A generator that cannot keep up would understate the load: count the arrivals it skipped.
+    let mut skipped = 0;
+    let mut tasks = Vec::new();
+    let mut ticks = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
+    ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Burst);
+    let started = Instant::now();
+    while started.elapsed().as_secs_f64() < seconds {
+        ticks.tick().await;
+        if outstanding.load(Ordering::Relaxed) >= limit {
+            skipped += 1;
+            continue;
+        }
+        outstanding.fetch_add(1, Ordering::Relaxed);
+        let (http, url, body, outstanding) = (
+            http.clone(),
+            url.to_owned(),
+            body.clone(),
+            Arc::clone(&outstanding),
+        );
+        tasks.push(tokio::spawn(async move {
+            let result = request(&http, &url, body).await;
+            outstanding.fetch_sub(1, Ordering::Relaxed);
+            result
+        }));
+    }
+    let mut phase = Phase::default();
+    for task in tasks {
+        record(&mut phase, task.await.expect("a request task"));
+    }
+    phase.seconds = seconds;
+    (phase, skipped)
+}
+
+fn main() {
+    let (name, bytes) = corpus_scene();
+    let seconds = env_number("TSPACE_LOAD_SECONDS", 60.0);
+    let factor = env_number("TSPACE_LOAD_FACTOR", 2.0);
+    let outstanding_limit = env_number("TSPACE_LOAD_OUTSTANDING", 1024.0) as usize;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let queue = 16;
+    let in_flight = 4 * (cores + queue);
+    let server = ServerProcess::start(&["--queue", &queue.to_string()]);
+    let idle_rss = server.memory("VmRSS");
+    let url = format!("http://{}/v1/tangents", server.addr);
+    let body = bytes::Bytes::from(bytes.clone());
+    println!(
+        "scene: {name}, {} bytes; server: {cores} workers, queue {queue}, in flight {in_flight}; idle RSS {} MB",
+        bytes.len(),
+        idle_rss >> 20
+    );
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("a runtime");
+
+    // RSS sampled every 100 ms on its own thread, for the whole run.
+    let sampling = Arc::new(AtomicBool::new(true));
+    let sampler = {
+        let (sampling, pid) = (Arc::clone(&sampling), server.pid());
+        std::thread::spawn(move || {
+            let started = Instant::now();
+            let mut samples = Vec::new();
+            while sampling.load(Ordering::Relaxed) {
+                if let Ok(status) = std::fs::read_to_string(format!("/proc/{pid}/status")) {
+                    let kb: usize = status
+                        .lines()
+                        .find_map(|l| l.strip_prefix("VmRSS:"))
+                        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+                        .unwrap_or(0);
+                    samples.push((started.elapsed().as_secs_f64(), kb * 1024));
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            samples
+        })
+    };
+
+    let mut csv = String::from(
+        "phase,offered_per_s,requests,ok,shed,unexpected,ok_per_s,p50_ms,p90_ms,p99_ms,max_ms\n",
+    );
+    println!(
+        "{:>9} {:>9} {:>8} {:>7} {:>6} {:>6} {:>9} {:>8} {:>8} {:>8} {:>8}",
+        "phase",
+        "offered/s",
+        "requests",
+        "ok",
+        "503",
+        "other",
+        "ok/s",
+        "p50 ms",
+        "p90 ms",
+        "p99 ms",
+        "max ms"
+    );
+    let mut failures = Vec::new();
+    let (capacity, overload_p99, recovery) = runtime.block_on(async {
+        let mut baseline = closed_loop(&url, &body, 1, 3.0).await;
+        csv.push_str(&baseline.row("baseline", 0.0));
+        csv.push('\n');
+        let mut saturated = closed_loop(&url, &body, 2 * cores, 10.0).await;
+        let capacity = saturated.accepted.len() as f64 / saturated.seconds;
+        csv.push_str(&saturated.row("capacity", 0.0));
+        csv.push('\n');
+
+        let rate = factor * capacity;
+        let rss_before = server.memory("VmRSS");
+        let (mut overload, skipped) = open_loop(&url, &body, rate, seconds, outstanding_limit).await;
+        let load_stopped = Instant::now();
+        csv.push_str(&overload.row("overload", rate));
+        csv.push('\n');
+        if skipped > 0 {
+            println!(
+                "  the generator skipped {skipped} arrivals ({outstanding_limit} requests outstanding)"
+            );
+        }
+        let overload_p99 = percentile(&overload.accepted, 0.99);
+        for phase in [&baseline, &saturated, &overload] {
+            for (i, e) in phase.unexpected.iter().enumerate().take(5) {
+                failures.push(format!("unexpected answer {i}: {e}"));
+            }
+        }
+
+        // Recovery: one client from the moment arrivals stop (the last open-loop answers are in,
+        // so the queue is already empty or draining).
+        let http = reqwest::Client::new();
+        let mut first_ok = None;
+        let mut recovered = Phase::default();
+        let recovery_started = Instant::now();
+        while recovery_started.elapsed() < Duration::from_secs(5) {
+            let outcome = request(&http, &url, body.clone()).await;
+            if outcome.0 == 200 && first_ok.is_none() {
+                first_ok = Some(load_stopped.elapsed());
+            }
+            record(&mut recovered, outcome);
+        }
+        recovered.seconds = recovery_started.elapsed().as_secs_f64();
+        csv.push_str(&recovered.row("recovery", 0.0));
+        csv.push('\n');
+        let recovered_p50 = percentile(&recovered.accepted, 0.5);
+        let baseline_p50 = percentile(&baseline.accepted, 0.5);
+        println!(
+            "  RSS {} MB before the overload; first 200 after the load stopped: {}; recovery p50 {:.2} ms against baseline {:.2} ms",
+            rss_before >> 20,
+            first_ok.map_or("none".into(), |d| format!("{:.1} ms", ms(d))),
+            ms(recovered_p50),
+            ms(baseline_p50)
+        );
+        // The queue drains at capacity; a second on top of that is "at once" on this machine.
+        let drain = Duration::from_secs_f64((queue + cores) as f64 / capacity.max(1.0) + 1.0);
+        match first_ok {
+            Some(d) if d <= drain => {}
+            other => failures.push(format!(
+                "no 200 within {:.0} ms of the load stopping: {other:?}",
+                ms(drain)
+            )),
+        }
+        if recovered_p50.as_secs_f64() > 1.5 * baseline_p50.as_secs_f64() + 0.002 {
+            failures.push(format!(
+                "latency after the load ({:.2} ms) is not back to the baseline ({:.2} ms)",
+                ms(recovered_p50),
+                ms(baseline_p50)
+            ));
+        }
+        (capacity, overload_p99, first_ok)
+    });
+    sampling.store(false, Ordering::Relaxed);
+    let samples = sampler.join().expect("the sampler");
+    let peak_sampled = samples.iter().map(|s| s.1).max().unwrap_or(0);
+    let peak = server.memory("VmHWM");
+    // Every running job may cost up to 8 bodies (tests/hostile.rs measures 5.8), every queued
+    // one its body and a copy, and every upload in reception its body.
+    let bound = idle_rss + (8 * cores + 2 * queue + in_flight) * bytes.len();
+    println!(
+        "capacity {capacity:.1} req/s; at {factor}x: accepted p99 {:.1} ms; peak RSS {} MB (sampled max {} MB; idle {} MB; bound {} MB = idle + (8 x workers + 2 x queue + in flight) x body); recovered in {}",
+        ms(overload_p99),
+        peak >> 20,
+        peak_sampled >> 20,
+        idle_rss >> 20,
+        bound >> 20,
+        recovery.map_or("-".into(), |d| format!("{:.1} ms", ms(d)))
+    );
+    if peak > bound {
+        failures.push(format!(
+            "peak RSS {} MB is over the bound {} MB",
+            peak >> 20,
+            bound >> 20
+        ));
+    }
+    let out = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench-results");
+    if std::fs::create_dir_all(&out).is_ok() {
+        let _ = std::fs::write(out.join("load.csv"), csv);
+        let rss: String = std::iter::once("seconds,rss_bytes\n".to_owned())
+            .chain(samples.iter().map(|(t, b)| format!("{t:.2},{b}\n")))
+            .collect();
+        let _ = std::fs::write(out.join("load-rss.csv"), rss);
+    }
+    drop(server);
+    if !failures.is_empty() {
+        for failure in &failures {
+            eprintln!("FAILED: {failure}");
+        }
+        std::process::exit(101);
+    }
+    println!("load test passed: only 200 and 503, RSS within its bound, recovery at once");
+}

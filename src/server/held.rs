@@ -1,0 +1,89 @@
+//! A response body that keeps its request's in-flight permit until the body has been sent.
+//!
+//! A finished scene is as large as the upload, and a client that reads its answer slowly would
+//! otherwise keep it in memory after its job has left the pool, unaccounted: under overload
+//! with slow readers, answers pile up without bound. The body is handed to hyper in 256 KiB
+//! frames, and hyper asks for the next frame only once its write buffer has room, so the body
+//! (and with it the permit) lives until the answer is nearly all on the wire.
+
+use axum::body::Bytes;
+use http_body::{Body, Frame, SizeHint};
+use std::convert::Infallible;
+use std::pin::Pin;
+use std::task::{Context, Poll};
+use tokio::sync::OwnedSemaphorePermit;
+
+const FRAME: usize = 256 << 10;
+
+pub struct HeldBody {
+    rest: Bytes,
+    permit: Option<OwnedSemaphorePermit>,
+}
+
+impl HeldBody {
+    pub fn new(bytes: impl Into<Bytes>, permit: OwnedSemaphorePermit) -> Self {
+        HeldBody {
+            rest: bytes.into(),
+            permit: Some(permit),
+        }
+    }
+}
+
+impl Body for HeldBody {
+    type Data = Bytes;
+    type Error = Infallible;
+
+    fn poll_frame(
+        mut self: Pin<&mut Self>,
+        _: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Bytes>, Infallible>>> {
+        if self.rest.is_empty() {
+            self.permit = None;
+            return Poll::Ready(None);
+        }
+        let n = self.rest.len().min(FRAME);
+        let frame = self.rest.split_to(n);
+        Poll::Ready(Some(Ok(Frame::data(frame))))
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.rest.is_empty()
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        SizeHint::with_exact(self.rest.len() as u64)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use http_body_util::BodyExt;
+    use std::sync::Arc;
+    use tokio::sync::Semaphore;
+
+    #[tokio::test]
+    async fn sends_everything_in_frames_then_frees_the_permit() {
+        let permits = Arc::new(Semaphore::new(1));
+        let data: Vec<u8> = (0..(FRAME * 2 + 5)).map(|i| i as u8).collect();
+        let mut body = HeldBody::new(data.clone(), permits.clone().try_acquire_owned().unwrap());
+        assert_eq!(body.size_hint().exact(), Some(data.len() as u64));
+        let mut sent = Vec::new();
+        let mut frames = 0;
+        while let Some(frame) = body.frame().await {
+            assert_eq!(permits.available_permits(), 0, "held while sending");
+            sent.extend_from_slice(&frame.unwrap().into_data().unwrap());
+            frames += 1;
+        }
+        assert_eq!((sent, frames), (data, 3));
+        assert_eq!(permits.available_permits(), 1);
+    }
+
+    #[tokio::test]
+    async fn a_body_dropped_unsent_frees_the_permit() {
+        let permits = Arc::new(Semaphore::new(1));
+        let body = HeldBody::new(vec![0u8; 10], permits.clone().try_acquire_owned().unwrap());
+        drop(body);
+        assert_eq!(permits.available_permits(), 1);
+    }
+}
