@@ -4,7 +4,7 @@
 //! a mirror seam is split instead of averaging two opposite frames into nothing.
 
 use super::Weighting;
-use super::diagnostics::{Diagnostics, FallbackCounts};
+use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTallies};
 use super::fallback::{self, Problem};
 use super::math::{
     Mesh, add, cross, dot, encode, is_finite3, length, normalize_or_zero, reject, same_position,
@@ -37,21 +37,25 @@ fn acos_approx(x: f32) -> f32 {
     if angle.is_finite() { angle } else { 0.0 }
 }
 
-/// The angle at `here` between the edges to `next` and `prev`.
-fn corner_angle(here: [f32; 3], next: [f32; 3], prev: [f32; 3]) -> f32 {
-    acos_approx(dot(
-        normalize_or_zero(sub(next, here)),
-        normalize_or_zero(sub(prev, here)),
-    ))
+/// The three corner angles of a triangle, from its three unit edges: each edge serves two
+/// corners (negated for one of them, which is exact), so three normalizations do for six.
+fn corner_angles(p: &[[f32; 3]; 3]) -> [f32; 3] {
+    let e01 = normalize_or_zero(sub(p[1], p[0]));
+    let e12 = normalize_or_zero(sub(p[2], p[1]));
+    let e20 = normalize_or_zero(sub(p[0], p[2]));
+    [
+        acos_approx(-dot(e01, e20)),
+        acos_approx(-dot(e12, e01)),
+        acos_approx(-dot(e20, e12)),
+    ]
 }
 
-fn face(mesh: &Mesh<'_>, triangle: usize, weighting: Weighting) -> Face {
-    let [a, b, c] = mesh.triangle(triangle);
-    let (p0, p1, p2) = (mesh.positions[a], mesh.positions[b], mesh.positions[c]);
+fn face(p: &[[f32; 3]; 3], uv: &[[f32; 2]; 3], weighting: Weighting) -> Face {
+    let [p0, p1, p2] = *p;
     if same_position(p0, p1) || same_position(p1, p2) || same_position(p2, p0) {
         return Face::default();
     }
-    let (t0, t1, t2) = (mesh.uv(a), mesh.uv(b), mesh.uv(c));
+    let [t0, t1, t2] = *uv;
     let (e1, e2) = (sub(p1, p0), sub(p2, p0));
     let (du1, dv1, du2, dv2) = (t1[0] - t0[0], t1[1] - t0[1], t2[0] - t0[0], t2[1] - t0[1]);
     let det = du1 * dv2 - dv1 * du2;
@@ -79,11 +83,7 @@ fn face(mesh: &Mesh<'_>, triangle: usize, weighting: Weighting) -> Face {
             let area = length(cross(e1, e2));
             [if area.is_finite() { area } else { 0.0 }; 3]
         }
-        Weighting::Angle => [
-            corner_angle(p0, p1, p2),
-            corner_angle(p1, p2, p0),
-            corner_angle(p2, p0, p1),
-        ],
+        Weighting::Angle => corner_angles(p),
     };
     Face {
         s,
@@ -100,20 +100,45 @@ pub(crate) fn generate(
     weighting: Weighting,
     parallel: bool,
     flip_w: bool,
+    check: &TriangleCheck<'_>,
     diagnostics: &mut Diagnostics,
 ) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
-    let faces: Vec<Face> = if parallel {
-        (0..triangle_count)
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|t| face(mesh, t, weighting))
-            .collect()
-    } else {
-        (0..triangle_count)
-            .map(|t| face(mesh, t, weighting))
-            .collect()
+    let mut faces = vec![Face::default(); triangle_count];
+    // The diagnostics' triangle checks ride along: they read the same corners.
+    const CHUNK: usize = 16384;
+    let classify = |(chunk, faces): (usize, &mut [Face])| {
+        let mut tallies = TriangleTallies::default();
+        for (k, face_out) in faces.iter_mut().enumerate() {
+            let t = chunk * CHUNK + k;
+            let v = mesh.triangle(t);
+            let p = [
+                mesh.positions[v[0]],
+                mesh.positions[v[1]],
+                mesh.positions[v[2]],
+            ];
+            let uv = [mesh.uv(v[0]), mesh.uv(v[1]), mesh.uv(v[2])];
+            *face_out = face(&p, &uv, weighting);
+            check.check(&mut tallies, t, v, &p, &uv);
+        }
+        tallies
     };
+    let triangles = if parallel {
+        faces
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(classify)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(TriangleTallies::default(), TriangleTallies::append)
+    } else {
+        faces
+            .chunks_mut(CHUNK)
+            .enumerate()
+            .map(classify)
+            .fold(TriangleTallies::default(), TriangleTallies::append)
+    };
+    diagnostics.set_triangles(triangles);
     let weld = weld_mesh(mesh);
     let corner_class: Vec<u32> = mesh
         .indices
@@ -141,6 +166,8 @@ pub(crate) fn generate(
                 sums[side][1] = add(sums[side][1], scale(f.t, w));
             }
             let strongest = usize::from(dot(sums[1][0], sums[1][0]) > dot(sums[0][0], sums[0][0]));
+            // At most two tangents per vertex, one per side, each worked out once.
+            let mut finished: [Option<([f32; 4], bool)>; 2] = [None; 2];
             for &corner in corners {
                 let corner = corner as usize;
                 let f = &faces[corner / 3];
@@ -149,15 +176,17 @@ pub(crate) fn generate(
                 } else {
                     usize::from(f.sign < 0.0)
                 };
-                let tangent = normalize_or_zero(reject(sums[side][0], normal));
-                let handedness = dot(cross(normal, tangent), sums[side][1]);
-                let orientation_preserving = if handedness != 0.0 {
-                    handedness > 0.0
-                } else {
-                    side == 0
-                };
-                let t = encode(tangent, orientation_preserving);
-                let valid = normal_ok && fallback::passes(&t, normal);
+                let (t, valid) = *finished[side].get_or_insert_with(|| {
+                    let tangent = normalize_or_zero(reject(sums[side][0], normal));
+                    let handedness = dot(cross(normal, tangent), sums[side][1]);
+                    let orientation_preserving = if handedness != 0.0 {
+                        handedness > 0.0
+                    } else {
+                        side == 0
+                    };
+                    let t = encode(tangent, orientation_preserving);
+                    (t, normal_ok && fallback::passes(&t, normal))
+                });
                 put(
                     corner,
                     fallback::finish_corner(mesh, corner, t, valid, flip_w, repairs),

@@ -275,9 +275,9 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     };
     // Axis tangents have no UV handedness to convert.
     let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
-    // MikkTSpace checks the triangles in its own triangle pass; the others need a pass of their
-    // own.
-    if options.method != Method::MikkTSpace {
+    // MikkTSpace and fast check the triangles in their own triangle pass; axis needs a pass of
+    // its own.
+    if options.method == Method::Axis {
         diagnostics.set_triangles(diagnostics::analyze_triangles(
             &mesh,
             &triangle_check,
@@ -297,6 +297,7 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
             options.weighting,
             options.parallel,
             flip_w,
+            &triangle_check,
             &mut diagnostics,
         ),
         Method::Axis => {
