@@ -229,33 +229,64 @@ pub(crate) fn analyze_triangles(
 /// checks and output-side counts (split, handedness, fallbacks) are filled in by the steps that
 /// see them.
 pub(crate) fn analyze_vertices(mesh: &Mesh<'_>, options: &Options) -> (Diagnostics, Vec<bool>) {
+    const CHUNK: usize = 1 << 16;
+    // (zero normals, non-unit normals, any non-finite normal) of one chunk of normals.
+    let check_normals = |(chunk, normals): (usize, &[[f32; 3]])| {
+        let mut zero = Tally::default();
+        let mut non_unit = Tally::default();
+        let mut non_finite = false;
+        for (v, &n) in (chunk * CHUNK..).zip(normals) {
+            if !is_finite3(n) {
+                non_finite = true;
+                continue;
+            }
+            // In f64: an f32 length underflows to zero for tiny normals the core still uses.
+            let w = n.map(f64::from);
+            let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+            if len == 0.0 {
+                zero.add(v as u32);
+            } else if (len - 1.0).abs() > 1e-3 {
+                non_unit.add(v as u32);
+            }
+        }
+        (zero, non_unit, non_finite)
+    };
+    let chunks: Vec<(Tally, Tally, bool)> = if options.parallel {
+        mesh.normals
+            .par_chunks(CHUNK)
+            .enumerate()
+            .map(check_normals)
+            .collect()
+    } else {
+        mesh.normals
+            .chunks(CHUNK)
+            .enumerate()
+            .map(check_normals)
+            .collect()
+    };
+    // In chunk order, so the first few indices listed are the lowest, as in one pass.
     let mut zero_normals = Tally::default();
     let mut non_unit_normals = Tally::default();
     let mut any_non_finite = false;
-    for (v, &n) in mesh.normals.iter().enumerate() {
-        if !is_finite3(n) {
-            any_non_finite = true;
-            continue;
-        }
-        // In f64: an f32 length underflows to zero for tiny normals the core still uses.
-        let w = n.map(f64::from);
-        let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-        if len == 0.0 {
-            zero_normals.add(v as u32);
-        } else if (len - 1.0).abs() > 1e-3 {
-            non_unit_normals.add(v as u32);
-        }
+    for (zero, non_unit, non_finite) in &chunks {
+        zero_normals.append(zero);
+        non_unit_normals.append(non_unit);
+        any_non_finite |= non_finite;
     }
     let finite_vertex = |v: usize| {
         is_finite3(mesh.positions[v])
             && is_finite3(mesh.normals[v])
             && mesh.uv(v).iter().all(|x| x.is_finite())
     };
+    let finite_uv = |t: &[f32; 2]| t[0].is_finite() && t[1].is_finite();
     any_non_finite = any_non_finite
-        || !mesh.positions.iter().all(|&p| is_finite3(p))
-        || mesh
-            .uvs
-            .is_some_and(|uvs| !uvs.iter().flatten().all(|x| x.is_finite()));
+        || if options.parallel {
+            !mesh.positions.par_iter().all(|&p| is_finite3(p))
+                || mesh.uvs.is_some_and(|uvs| !uvs.par_iter().all(finite_uv))
+        } else {
+            !mesh.positions.iter().all(|&p| is_finite3(p))
+                || mesh.uvs.is_some_and(|uvs| !uvs.iter().all(finite_uv))
+        };
     let non_finite_vertex = if any_non_finite {
         (0..mesh.vertex_count())
             .map(|v| !finite_vertex(v))

@@ -6,6 +6,7 @@
 use super::Weighting;
 use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTallies};
 use super::fallback::{self, Problem};
+use super::fill::filled;
 use super::math::{
     Mesh, add, cross, dot, encode, is_finite3, length, normalize_or_zero, reject, same_position,
     scale, sub,
@@ -104,7 +105,7 @@ pub(crate) fn generate(
     diagnostics: &mut Diagnostics,
 ) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
-    let mut faces = vec![Face::default(); triangle_count];
+    let mut faces = filled(triangle_count, parallel, Face::default);
     // The diagnostics' triangle checks ride along: they read the same corners.
     const CHUNK: usize = 16384;
     let classify = |(chunk, faces): (usize, &mut [Face])| {
@@ -139,7 +140,7 @@ pub(crate) fn generate(
             .fold(TriangleTallies::default(), TriangleTallies::append)
     };
     diagnostics.set_triangles(triangles);
-    let weld = weld_mesh(mesh);
+    let weld = weld_mesh(mesh, parallel);
     let corner_class: Vec<u32> = mesh
         .indices
         .iter()
@@ -194,7 +195,7 @@ pub(crate) fn generate(
             }
         };
 
-    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count());
+    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     let run = |range: std::ops::Range<usize>| {
         let mut copies = Copies::default();
         let mut repairs = Vec::new();

@@ -35,6 +35,7 @@
 use super::acos::acos_slice;
 use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTallies};
 use super::fallback::{self, Problem};
+use super::fill::filled;
 use super::math::{
     Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero, not_zero, reject,
     same_position, scale, sub,
@@ -69,9 +70,9 @@ pub(crate) fn generate(
     diagnostics: &mut Diagnostics,
 ) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
-    let weld = weld_mesh(mesh);
+    let weld = weld_mesh(mesh, parallel);
 
-    let mut frames = vec![Frame::default(); triangle_count];
+    let mut frames = filled(triangle_count, parallel, Frame::default);
     let mut flags = vec![0u8; triangle_count];
     // The diagnostics' triangle checks ride along: they read the same corners.
     const CHUNK: usize = 16384;
@@ -152,7 +153,7 @@ pub(crate) fn generate(
         degenerate.sort_unstable();
     }
 
-    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count());
+    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     let (mut parts, mut repairs, touched) = if parallel {
         let pieces = table.chunks(rayon::current_num_threads() * 16);
         let results: Vec<(Piece, Copies)> = pieces

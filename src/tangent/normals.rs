@@ -56,11 +56,14 @@ pub(crate) fn generate(input: &MeshInput<'_>, mode: NormalMode) -> GeneratedNorm
             .collect(),
         NormalMode::SmoothByAngle { crease_degrees } => {
             let cos_crease = crease_degrees.to_radians().cos();
-            let weld = weld_vertices(&Key {
-                positions,
-                normals: None,
-                uvs: None,
-            });
+            let weld = weld_vertices(
+                &Key {
+                    positions,
+                    normals: None,
+                    uvs: None,
+                },
+                false,
+            );
             let corner_class: Vec<u32> = indices
                 .iter()
                 .map(|&v| weld.class_of_vertex[v as usize])

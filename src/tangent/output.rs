@@ -12,6 +12,7 @@
 //! atomic loads and stores compile to plain ones, so this costs nothing over `&mut` slices.
 
 use super::diagnostics::{Diagnostics, Tally};
+use super::fill::filled;
 use super::math::{any_orthogonal, unit};
 use super::split::SplitPlan;
 use super::weld::NONE;
@@ -59,16 +60,15 @@ fn store4(place: &[AtomicU32; 4], value: [f32; 4]) {
 }
 
 impl<'a> SharedSplit<'a> {
-    pub fn new(indices: &'a [u32], vertex_count: usize) -> SharedSplit<'a> {
+    pub fn new(indices: &'a [u32], vertex_count: usize, parallel: bool) -> SharedSplit<'a> {
+        let corners = indices.len();
         SharedSplit {
             indices,
-            vertex_tangents: (0..vertex_count)
-                .map(|_| [const { AtomicU32::new(0) }; 4])
-                .collect(),
-            signs: (0..vertex_count).map(|_| AtomicU8::new(0)).collect(),
-            first_copy: (0..vertex_count).map(|_| AtomicU32::new(NONE)).collect(),
-            split_indices: (0..indices.len()).map(|_| AtomicU32::new(0)).collect(),
-            corner_signs: (0..indices.len()).map(|_| AtomicU8::new(0)).collect(),
+            vertex_tangents: filled(vertex_count, parallel, || [const { AtomicU32::new(0) }; 4]),
+            signs: filled(vertex_count, parallel, || AtomicU8::new(0)),
+            first_copy: filled(vertex_count, parallel, || AtomicU32::new(NONE)),
+            split_indices: filled(corners, parallel, || AtomicU32::new(0)),
+            corner_signs: filled(corners, parallel, || AtomicU8::new(0)),
         }
     }
 

@@ -5,6 +5,7 @@
 //! open-addressing hash table over the input vertices, which for indexed meshes is half the work
 //! of hashing every corner as the reference does.
 
+use super::fill::filled;
 use super::math::Mesh;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -88,8 +89,194 @@ impl Key<'_> {
     }
 }
 
-/// Groups equal vertices. Class ids are assigned in order of first appearance.
-pub(crate) fn weld_vertices(key: &Key<'_>) -> Weld {
+/// Groups equal vertices. Class ids are assigned in order of first appearance, so the result
+/// is the same whether or not it is computed in parallel.
+pub(crate) fn weld_vertices(key: &Key<'_>, parallel: bool) -> Weld {
+    let vertex_count = key.positions.len();
+    if vertex_count < SHARDED_FROM {
+        return weld_in_one_table(key);
+    }
+    weld_in_shards(key, parallel)
+}
+
+/// From this many vertices on, the table is split into shards (see [`weld_in_shards`]).
+const SHARDED_FROM: usize = 1 << 15;
+/// About this many vertices per shard: a shard's table (8 bytes a slot, 1.5 to 3 slots a
+/// vertex) then stays within a core's L2 cache.
+const SHARD_VERTICES: usize = 1 << 13;
+
+/// Welding for large meshes. One table over a million vertices misses the cache on nearly every
+/// probe, and cannot be shared between threads. Instead, equal vertices having equal hashes,
+/// the vertices are dealt into shards by the top bits of their hash, and each shard is welded
+/// on its own with a table that fits in cache, taking its vertices in ascending order so that
+/// the first of each class is found first. Class ids are then numbered by first appearance,
+/// exactly as [`weld_in_one_table`] numbers them.
+fn weld_in_shards(key: &Key<'_>, parallel: bool) -> Weld {
+    let vertex_count = key.positions.len();
+    let shard_bits = (vertex_count / SHARD_VERTICES)
+        .next_power_of_two()
+        .trailing_zeros()
+        .clamp(1, 12);
+    let shard_count = 1usize << shard_bits;
+    const MIN_LEN: usize = 1 << 14;
+    // Per vertex: its hash's low half (kept in the table, so that most probes are decided
+    // without reading the vertices) and its shard; `NONE` keeps a vertex that equals nothing
+    // (NaN) out of every shard.
+    let hash_of = |v: usize| {
+        let h = key.hash(v);
+        let shard = if key.self_equal(v) {
+            (h >> (64 - shard_bits)) as u32
+        } else {
+            NONE
+        };
+        (h as u32, shard)
+    };
+    let (tags, shards): (Vec<u32>, Vec<u32>) = if parallel {
+        (0..vertex_count)
+            .into_par_iter()
+            .with_min_len(MIN_LEN)
+            .map(hash_of)
+            .unzip()
+    } else {
+        (0..vertex_count).map(hash_of).unzip()
+    };
+    // The vertices of every shard, ascending.
+    let by_shard = CornerTable::build_filtered(&shards, shard_count, |_| true, parallel);
+    drop(shards);
+
+    // The first equal vertex of every vertex in `by_shard` order, shard by shard.
+    let mut firsts = vec![0u32; by_shard.corners.len()];
+    let mut pieces = Vec::with_capacity(shard_count);
+    let mut rest = firsts.as_mut_slice();
+    for shard in 0..shard_count {
+        let (piece, tail) = rest.split_at_mut(by_shard.of(shard).len());
+        pieces.push((shard, piece));
+        rest = tail;
+    }
+    let weld_shard = |(shard, firsts): (usize, &mut [u32])| {
+        let vertices = by_shard.of(shard);
+        let mut buckets = 16usize;
+        while buckets < vertices.len() + vertices.len() / 2 {
+            buckets *= 2;
+        }
+        let mask = buckets - 1;
+        // (first vertex, its tag); `NONE` marks an empty slot.
+        let mut table = vec![(NONE, 0u32); buckets];
+        for (&v, first) in vertices.iter().zip(firsts.iter_mut()) {
+            let tag = tags[v as usize];
+            let mut slot = tag as usize & mask;
+            let mut probe = 0;
+            loop {
+                let (held, held_tag) = table[slot];
+                if held == NONE {
+                    table[slot] = (v, tag);
+                    *first = v;
+                    break;
+                }
+                if held_tag == tag && key.equal(held as usize, v as usize) {
+                    *first = held;
+                    break;
+                }
+                probe += 1;
+                slot = (slot + probe) & mask;
+            }
+        }
+    };
+    if parallel {
+        pieces.into_par_iter().for_each(weld_shard);
+    } else {
+        pieces.into_iter().for_each(weld_shard);
+    }
+    drop(tags);
+
+    // Back to vertex order; vertices outside every shard are their own first.
+    let mut first_of_vertex: Vec<u32> = (0..vertex_count as u32).collect();
+    for (&v, &first) in by_shard.corners.iter().zip(&firsts) {
+        first_of_vertex[v as usize] = first;
+    }
+    drop(firsts);
+    drop(by_shard);
+
+    // Classes numbered by first appearance: a prefix count of the vertices that are their own
+    // first, block by block.
+    let blocks = if parallel {
+        rayon::current_num_threads().clamp(1, 64) * 4
+    } else {
+        1
+    };
+    let block_len = vertex_count.div_ceil(blocks).max(1);
+    let count_firsts = |(b, firsts): (usize, &[u32])| {
+        let start = (b * block_len) as u32;
+        firsts
+            .iter()
+            .zip(start..)
+            .filter(|&(&first, v)| first == v)
+            .count() as u32
+    };
+    let counts: Vec<u32> = if parallel {
+        first_of_vertex
+            .par_chunks(block_len)
+            .enumerate()
+            .map(count_firsts)
+            .collect()
+    } else {
+        first_of_vertex
+            .chunks(block_len)
+            .enumerate()
+            .map(count_firsts)
+            .collect()
+    };
+    let mut class_count = 0u32;
+    let block_starts: Vec<u32> = counts
+        .iter()
+        .map(|&n| {
+            let start = class_count;
+            class_count += n;
+            start
+        })
+        .collect();
+    // Own classes first (NONE elsewhere), then every vertex takes its first's class.
+    let mut own_class = vec![NONE; vertex_count];
+    let number = |(b, (own, firsts)): (usize, (&mut [u32], &[u32]))| {
+        let mut next = block_starts[b];
+        for ((class, &first), v) in own.iter_mut().zip(firsts).zip((b * block_len) as u32..) {
+            if first == v {
+                *class = next;
+                next += 1;
+            }
+        }
+    };
+    if parallel {
+        own_class
+            .par_chunks_mut(block_len)
+            .zip(first_of_vertex.par_chunks(block_len))
+            .enumerate()
+            .for_each(number);
+    } else {
+        own_class
+            .chunks_mut(block_len)
+            .zip(first_of_vertex.chunks(block_len))
+            .enumerate()
+            .for_each(number);
+    }
+    let class_of = |&first: &u32| own_class[first as usize];
+    let class_of_vertex: Vec<u32> = if parallel {
+        first_of_vertex
+            .par_iter()
+            .with_min_len(MIN_LEN)
+            .map(class_of)
+            .collect()
+    } else {
+        first_of_vertex.iter().map(class_of).collect()
+    };
+    Weld {
+        class_of_vertex,
+        class_count: class_count as usize,
+    }
+}
+
+/// One hash table over all the vertices: for meshes small enough that it stays in cache.
+fn weld_in_one_table(key: &Key<'_>) -> Weld {
     let vertex_count = key.positions.len();
     let mut buckets = 16usize;
     while buckets < vertex_count + vertex_count / 2 {
@@ -144,12 +331,15 @@ pub(crate) fn weld_vertices(key: &Key<'_>) -> Weld {
 }
 
 /// Welds the vertices MikkTSpace would weld: equal position, normal and texture coordinate.
-pub(crate) fn weld_mesh(mesh: &Mesh<'_>) -> Weld {
-    weld_vertices(&Key {
-        positions: mesh.positions,
-        normals: Some(mesh.normals),
-        uvs: mesh.uvs,
-    })
+pub(crate) fn weld_mesh(mesh: &Mesh<'_>, parallel: bool) -> Weld {
+    weld_vertices(
+        &Key {
+            positions: mesh.positions,
+            normals: Some(mesh.normals),
+            uvs: mesh.uvs,
+        },
+        parallel,
+    )
 }
 
 /// For each class, the corners that meet there, in ascending corner order (compressed rows).
@@ -221,7 +411,7 @@ impl CornerTable {
         offsets[class_count] = running;
 
         let corners = if blocks > 1 {
-            let corners: Vec<AtomicU32> = (0..running).map(|_| AtomicU32::new(0)).collect();
+            let corners: Vec<AtomicU32> = filled(running as usize, true, || AtomicU32::new(0));
             let fill_block = |(b, mut next): (usize, Vec<u32>)| {
                 for c in b * block_len..((b + 1) * block_len).min(corner_count) {
                     let class = class_of(c);
@@ -290,11 +480,14 @@ mod tests {
             [f32::NAN, 0.0, 0.0],
         ];
         let uvs = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]];
-        let weld = weld_vertices(&Key {
-            positions: &positions,
-            normals: None,
-            uvs: Some(&uvs),
-        });
+        let weld = weld_vertices(
+            &Key {
+                positions: &positions,
+                normals: None,
+                uvs: Some(&uvs),
+            },
+            false,
+        );
         assert_eq!(weld.class_of_vertex, vec![0, 0, 1, 2, 3]);
         assert_eq!(weld.class_count, 4);
     }
@@ -303,12 +496,72 @@ mod tests {
     fn texture_coordinates_separate_vertices() {
         let positions = [[0.0, 0.0, 0.0]; 3];
         let uvs = [[0.0, 0.0], [0.5, 0.0], [0.0, 0.0]];
-        let weld = weld_vertices(&Key {
+        let weld = weld_vertices(
+            &Key {
+                positions: &positions,
+                normals: None,
+                uvs: Some(&uvs),
+            },
+            false,
+        );
+        assert_eq!(weld.class_of_vertex, vec![0, 1, 0]);
+    }
+
+    /// The sharded weld numbers classes exactly as the single table does, in parallel or not:
+    /// many duplicates (near and far apart), signed zeros and NaN vertices.
+    #[test]
+    fn sharded_weld_matches_one_table() {
+        let count = SHARDED_FROM * 3 + 17;
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut random = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut positions = Vec::with_capacity(count);
+        let mut uvs = Vec::with_capacity(count);
+        for v in 0..count {
+            let r = random();
+            let (p, t) = match r % 8 {
+                // A copy of an earlier vertex, near or far.
+                0 | 1 if v > 0 => {
+                    let earlier = if r % 2 == 0 {
+                        v - 1 - (r >> 8) as usize % v.min(4)
+                    } else {
+                        (r >> 8) as usize % v
+                    };
+                    (positions[earlier], uvs[earlier])
+                }
+                2 => ([-0.0, (r % 5) as f32, 0.0], [0.0, -0.0]),
+                3 => ([f32::NAN, 1.0, 2.0], [0.0, 0.0]),
+                _ => (
+                    [
+                        (r % 97) as f32,
+                        ((r >> 16) % 89) as f32,
+                        ((r >> 32) % 3) as f32,
+                    ],
+                    [((r >> 40) % 2) as f32, 0.5],
+                ),
+            };
+            positions.push(p);
+            uvs.push(t);
+        }
+        let key = Key {
             positions: &positions,
             normals: None,
             uvs: Some(&uvs),
-        });
-        assert_eq!(weld.class_of_vertex, vec![0, 1, 0]);
+        };
+        let expected = weld_in_one_table(&key);
+        assert!(
+            expected.class_count < count / 2,
+            "the test should weld a lot"
+        );
+        for parallel in [false, true] {
+            let sharded = weld_in_shards(&key, parallel);
+            assert_eq!(sharded.class_count, expected.class_count);
+            assert!(sharded.class_of_vertex == expected.class_of_vertex);
+        }
     }
 
     #[test]
