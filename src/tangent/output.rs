@@ -8,31 +8,25 @@
 //! threads built it. This saves the per-corner tangent buffer (16 bytes a corner) and the pass
 //! over it that [`super::split::plan`] makes.
 //!
-//! Workers share the per-vertex and per-corner arrays; each entry has one writer, and relaxed
-//! atomic loads and stores compile to plain ones, so this costs nothing over `&mut` slices.
+//! Workers share the per-vertex arrays; each entry has one writer, and relaxed atomic loads and
+//! stores compile to plain ones, so this costs nothing over `&mut` slices. Nothing is written
+//! per corner: a corner that keeps its vertex keeps its index, and the handedness counts are
+//! read off the finished plan.
 
 use super::diagnostics::{Diagnostics, Tally};
 use super::fill::filled;
 use super::math::{any_orthogonal, unit};
 use super::split::SplitPlan;
 use super::weld::NONE;
-use std::sync::atomic::{AtomicU8, AtomicU32, Ordering::Relaxed};
-
-/// Bit 0: a corner with `w > 0` was seen; bit 1: `w < 0`.
-const POSITIVE: u8 = 1;
-const NEGATIVE: u8 = 2;
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 pub(crate) struct SharedSplit<'a> {
     indices: &'a [u32],
+    /// The tangent of every input vertex; `w == 0` (never the `w` of a finished tangent) while
+    /// no corner has used it.
     vertex_tangents: Vec<[AtomicU32; 4]>,
-    /// Handedness seen per input vertex; 0 while the vertex is unused.
-    signs: Vec<AtomicU8>,
     /// The first duplicate of each input vertex, in its owner's [`Copies`].
     first_copy: Vec<AtomicU32>,
-    /// The output index of every corner (duplicates are filled in at the end).
-    split_indices: Vec<AtomicU32>,
-    /// The handedness of every corner, for the mixed-handedness triangle count.
-    corner_signs: Vec<AtomicU8>,
 }
 
 /// Duplicated vertices made by one worker, numbered locally.
@@ -61,53 +55,48 @@ fn store4(place: &[AtomicU32; 4], value: [f32; 4]) {
 
 impl<'a> SharedSplit<'a> {
     pub fn new(indices: &'a [u32], vertex_count: usize, parallel: bool) -> SharedSplit<'a> {
-        let corners = indices.len();
         SharedSplit {
             indices,
             vertex_tangents: filled(vertex_count, parallel, || [const { AtomicU32::new(0) }; 4]),
-            signs: filled(vertex_count, parallel, || AtomicU8::new(0)),
             first_copy: filled(vertex_count, parallel, || AtomicU32::new(NONE)),
-            split_indices: filled(corners, parallel, || AtomicU32::new(0)),
-            corner_signs: filled(corners, parallel, || AtomicU8::new(0)),
         }
     }
 
-    /// Records the final tangent of `corner`. Every corner is put exactly once, and all corners
-    /// of one input vertex by the same worker with the same `copies`.
+    /// Records the final tangent of `corner`, whose vertex is `vertex`. Every corner is put
+    /// exactly once, and all corners of one input vertex by the same worker with the same
+    /// `copies`.
     #[inline]
-    pub fn put(&self, copies: &mut Copies, corner: usize, tangent: [f32; 4]) {
-        let v = self.indices[corner] as usize;
-        let sign = if tangent[3] > 0.0 { POSITIVE } else { NEGATIVE };
-        self.corner_signs[corner].store(sign, Relaxed);
-        let seen = self.signs[v].load(Relaxed);
-        self.signs[v].store(seen | sign, Relaxed);
+    pub fn put(&self, copies: &mut Copies, corner: usize, vertex: u32, tangent: [f32; 4]) {
+        let v = vertex as usize;
+        let current = load4(&self.vertex_tangents[v]);
         // Float equality: -0 and 0 are the same tangent (tangents are never NaN here).
-        if seen == 0 {
-            store4(&self.vertex_tangents[v], tangent);
-        } else if load4(&self.vertex_tangents[v]) != tangent {
-            let mut link = self.first_copy[v].load(Relaxed);
-            let mut last = NONE;
-            while link != NONE {
-                if copies.tangent[link as usize] == tangent {
-                    copies.corners.push((corner as u32, link));
-                    return;
-                }
-                last = link;
-                link = copies.next[link as usize];
-            }
-            let new = copies.source.len() as u32;
-            copies.source.push(v as u32);
-            copies.tangent.push(tangent);
-            copies.next.push(NONE);
-            if last == NONE {
-                self.first_copy[v].store(new, Relaxed);
-            } else {
-                copies.next[last as usize] = new;
-            }
-            copies.corners.push((corner as u32, new));
+        if current == tangent {
             return;
         }
-        self.split_indices[corner].store(v as u32, Relaxed);
+        if current[3] == 0.0 {
+            store4(&self.vertex_tangents[v], tangent);
+            return;
+        }
+        let mut link = self.first_copy[v].load(Relaxed);
+        let mut last = NONE;
+        while link != NONE {
+            if copies.tangent[link as usize] == tangent {
+                copies.corners.push((corner as u32, link));
+                return;
+            }
+            last = link;
+            link = copies.next[link as usize];
+        }
+        let new = copies.source.len() as u32;
+        copies.source.push(v as u32);
+        copies.tangent.push(tangent);
+        copies.next.push(NONE);
+        if last == NONE {
+            self.first_copy[v].store(new, Relaxed);
+        } else {
+            copies.next[last as usize] = new;
+        }
+        copies.corners.push((corner as u32, new));
     }
 
     /// Numbers the duplicates (`parts` in order) after the input vertices, gives unused vertices
@@ -122,44 +111,48 @@ impl<'a> SharedSplit<'a> {
         let added: usize = parts.iter().map(|p| p.source.len()).sum();
         let mut source_vertex: Vec<u32> = Vec::with_capacity(vertex_count + added);
         source_vertex.extend(0..vertex_count as u32);
-        let mut vertex_tangents: Vec<[f32; 4]> = self
-            .vertex_tangents
-            .into_iter()
-            .map(|lanes| lanes.map(|lane| f32::from_bits(lane.into_inner())))
-            .collect();
-        vertex_tangents.reserve(added);
-        let mut indices: Vec<u32> = self
-            .split_indices
-            .into_iter()
-            .map(AtomicU32::into_inner)
-            .collect();
+        let mut vertex_tangents: Vec<[f32; 4]> = Vec::with_capacity(vertex_count + added);
+        vertex_tangents.extend(
+            self.vertex_tangents
+                .into_iter()
+                .map(|lanes| lanes.map(|lane| f32::from_bits(lane.into_inner()))),
+        );
+        let mut indices = self.indices.to_vec();
+        // A vertex whose duplicate has the other handedness saw both.
+        let mut flipped: Vec<u32> = Vec::new();
         for part in parts {
             let base = source_vertex.len() as u32;
             for &(corner, local) in &part.corners {
                 indices[corner as usize] = base + local;
             }
+            for (&source, copy) in part.source.iter().zip(&part.tangent) {
+                if (copy[3] > 0.0) != (vertex_tangents[source as usize][3] > 0.0) {
+                    flipped.push(source);
+                }
+            }
             source_vertex.extend_from_slice(&part.source);
             vertex_tangents.extend_from_slice(&part.tangent);
         }
-
+        flipped.sort_unstable();
+        flipped.dedup();
         let mut flips = Tally::default();
-        for (v, sign) in self.signs.iter().enumerate() {
-            match sign.load(Relaxed) {
-                0 => {
-                    // Vertices no triangle uses still need a valid tangent in the output.
-                    let n = unit(normals[v]).unwrap_or([0.0, 0.0, 1.0]);
-                    let t = any_orthogonal(n);
-                    vertex_tangents[v] = [t[0], t[1], t[2], 1.0];
-                }
-                s if s == POSITIVE | NEGATIVE => flips.add(v as u32),
-                _ => {}
+        for v in flipped {
+            flips.add(v);
+        }
+
+        let mut mixed = Tally::default();
+        for (t, corners) in indices.chunks_exact(3).enumerate() {
+            let positive = |k: usize| vertex_tangents[corners[k] as usize][3] > 0.0;
+            if positive(0) != positive(1) || positive(0) != positive(2) {
+                mixed.add(t as u32);
             }
         }
-        let mut mixed = Tally::default();
-        for (t, corners) in self.corner_signs.chunks_exact(3).enumerate() {
-            let a = corners[0].load(Relaxed);
-            if a != corners[1].load(Relaxed) || a != corners[2].load(Relaxed) {
-                mixed.add(t as u32);
+        for (tangent, normal) in vertex_tangents.iter_mut().zip(normals) {
+            if tangent[3] == 0.0 {
+                // Vertices no triangle uses still need a valid tangent in the output.
+                let n = unit(*normal).unwrap_or([0.0, 0.0, 1.0]);
+                let t = any_orthogonal(n);
+                *tangent = [t[0], t[1], t[2], 1.0];
             }
         }
         diagnostics.handedness_flip_vertices = flips;
