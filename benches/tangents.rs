@@ -30,7 +30,7 @@ use std::time::Instant;
 use support::alloc::{CountingAllocator, HeapUse, peak_during};
 use support::chart;
 use support::contenders::{
-    BenchMesh, Contender, ErrorStats, Family, error_against_exact, max_angle_between, run,
+    BenchMesh, Contender, ErrorStats, Family, deviation, error_against_exact, run,
 };
 use support::corpus;
 use support::cpu;
@@ -190,6 +190,9 @@ struct MeshReport {
     /// Largest angle between tspace's MikkTSpace and bevy_mikktspace tangents: both implement
     /// the same algorithm, so this should be tiny.
     mikk_vs_bevy_degrees: Option<f64>,
+    /// How far meshopt's `Compatible` mode lands from bevy_mikktspace: the largest angle, and
+    /// the share of corners more than 0.01° away (the issue's tolerance for "the same").
+    compatible_vs_bevy: Option<(f64, f64)>,
 }
 
 impl MeshReport {
@@ -308,9 +311,10 @@ fn bench_mesh(mesh: &BenchMesh, config: &Config) -> MeshReport {
         })
         .collect();
 
-    // The MikkTSpace output is kept until bevy_mikktspace has run, to compare the two.
+    // The outputs to compare with bevy_mikktspace are kept until every contender has run.
     let mut mikk_corners = None;
-    let mut mikk_vs_bevy_degrees = None;
+    let mut bevy_corners = None;
+    let mut compatible_corners = None;
     for m in &mut measured {
         let start = Instant::now();
         let (output, heap) = peak_during(|| run(m.contender, mesh));
@@ -335,15 +339,18 @@ fn bench_mesh(mesh: &BenchMesh, config: &Config) -> MeshReport {
         }
         match m.contender {
             Contender::MikkSingle => mikk_corners = Some(output),
-            Contender::Bevy => {
-                mikk_vs_bevy_degrees = mikk_corners
-                    .take()
-                    .map(|mikk| max_angle_between(&mikk.corners(), &output.corners()));
-            }
+            Contender::Bevy => bevy_corners = Some(output),
+            Contender::MeshoptCompatible => compatible_corners = Some(output),
             _ => {}
         }
     }
-    drop(mikk_corners);
+    let against_bevy = |other: &Option<support::contenders::Output>| match (other, &bevy_corners) {
+        (Some(other), Some(bevy)) => Some(deviation(&other.corners(), &bevy.corners())),
+        _ => None,
+    };
+    let mikk_vs_bevy_degrees = against_bevy(&mikk_corners).map(|(max, _)| max);
+    let compatible_vs_bevy = against_bevy(&compatible_corners);
+    drop((mikk_corners, bevy_corners, compatible_corners));
 
     let count = measured.len();
     for round in 0.. {
@@ -383,6 +390,7 @@ fn bench_mesh(mesh: &BenchMesh, config: &Config) -> MeshReport {
         triangles,
         measured,
         mikk_vs_bevy_degrees,
+        compatible_vs_bevy,
     };
     let mut line = String::new();
     for c in [
@@ -456,7 +464,7 @@ fn ratio_table(reports: &[MeshReport]) -> String {
     );
     let _ = writeln!(
         out,
-        "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>11} {:>15}",
+        "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>11} {:>15} {:>20} {:>9}",
         "mesh",
         "mikk/bevy",
         "mikk/mo-compat",
@@ -468,12 +476,14 @@ fn ratio_table(reports: &[MeshReport]) -> String {
         "fast idle x",
         "wait %",
         "pool wait %",
-        "mikk~bevy max°"
+        "mikk~bevy max°",
+        "mo-compat~bevy max°",
+        ">0.01° %"
     );
     for r in reports {
         let _ = writeln!(
             out,
-            "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>11} {:>15}",
+            "{:<20} {:>10} {:>14} {:>10} {:>14} {:>11} {:>11} {:>11} {:>11} {:>8} {:>11} {:>15} {:>20} {:>9}",
             r.name,
             fmt(r.speed_ratio(MikkSingle, Bevy), 1),
             fmt(r.speed_ratio(MikkSingle, MeshoptCompatible), 2),
@@ -487,6 +497,9 @@ fn ratio_table(reports: &[MeshReport]) -> String {
             fmt(r.pool_wait_share().map(|w| w * 100.0), 1),
             r.mikk_vs_bevy_degrees
                 .map_or_else(|| "-".to_string(), |d| format!("{d:.2e}")),
+            r.compatible_vs_bevy
+                .map_or_else(|| "-".to_string(), |(d, _)| format!("{d:.2e}")),
+            fmt(r.compatible_vs_bevy.map(|(_, share)| share * 100.0), 3),
         );
     }
     out
@@ -661,7 +674,8 @@ fn throughput_csv(reports: &[MeshReport]) -> String {
         ",mikk_over_bevy,mikk_over_meshopt_compatible,fast_over_mikk,fast_over_meshopt_compatible,\
          mikk_parallel_speedup,fast_parallel_speedup,mikk_parallel_idle_estimate,\
          fast_parallel_idle_estimate,cpu_wait_share,pool_wait_share,mikk_extra_heap_bytes_per_tri,\
-         mikk_parallel_extra_heap_bytes_per_tri,mikk_vs_bevy_max_deg\n",
+         mikk_parallel_extra_heap_bytes_per_tri,mikk_vs_bevy_max_deg,\
+         meshopt_compatible_vs_bevy_max_deg,meshopt_compatible_vs_bevy_share_over_0_01_deg\n",
     );
     let num = |v: Option<f64>| v.map_or_else(String::new, |v| format!("{v:.6}"));
     for r in reports {
@@ -678,7 +692,7 @@ fn throughput_csv(reports: &[MeshReport]) -> String {
         }
         let _ = writeln!(
             out,
-            ",{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             num(r.speed_ratio(MikkSingle, Bevy)),
             num(r.speed_ratio(MikkSingle, MeshoptCompatible)),
             num(r.speed_ratio(FastSingle, MikkSingle)),
@@ -692,6 +706,8 @@ fn throughput_csv(reports: &[MeshReport]) -> String {
             num(r.extra_heap_per_triangle(MikkSingle)),
             num(r.extra_heap_per_triangle(MikkParallel)),
             num(r.mikk_vs_bevy_degrees),
+            num(r.compatible_vs_bevy.map(|(max, _)| max)),
+            num(r.compatible_vs_bevy.map(|(_, share)| share)),
         );
     }
     out

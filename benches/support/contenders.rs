@@ -273,12 +273,19 @@ pub fn error_against_exact(
     })
 }
 
-/// Largest angle between two generators' tangent directions, over the corners where the
-/// reference produced one. A check that the contenders compute the same thing.
-pub fn max_angle_between(ours: &[[f32; 4]], reference: &[[f32; 4]]) -> f64 {
-    ours.iter()
-        .zip(reference)
-        .filter(|(_, r)| r[..3].iter().any(|&x| x != 0.0))
-        .map(|(o, r)| angle_degrees([o[0], o[1], o[2]], [r[0], r[1], r[2]]))
-        .fold(0.0, f64::max)
+/// The largest angle (degrees) between corresponding corner tangents, and the share of corners
+/// more than 0.01° apart, over the corners the reference gave a tangent (nonzero xyz).
+pub fn deviation(ours: &[[f32; 4]], reference: &[[f32; 4]]) -> (f64, f64) {
+    let mut max = 0.0f64;
+    let (mut compared, mut beyond) = (0usize, 0usize);
+    for (o, r) in ours.iter().zip(reference) {
+        if r[..3].iter().all(|&x| x == 0.0) {
+            continue;
+        }
+        let angle = angle_degrees([o[0], o[1], o[2]], [r[0], r[1], r[2]]);
+        max = max.max(angle);
+        compared += 1;
+        beyond += usize::from(angle > 0.01);
+    }
+    (max, beyond as f64 / compared.max(1) as f64)
 }
