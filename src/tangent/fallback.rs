@@ -68,6 +68,15 @@ pub(crate) fn is_nearly_unit(n: [f32; 3]) -> bool {
     (dot(n, n) - 1.0).abs() < 1e-6
 }
 
+/// The normal that a vertex's tangents can be tested against with [`passes`] to know that
+/// [`repair_corner`] would leave them alone: the input normal when it is nearly unit, else its
+/// normalization (computed once per vertex, where `repair_corner` would redo it per corner).
+/// `None` when it has no direction: then each corner needs the full check.
+#[inline]
+pub(crate) fn check_normal(n: [f32; 3]) -> Option<[f32; 3]> {
+    if is_nearly_unit(n) { Some(n) } else { unit(n) }
+}
+
 /// The common case, decided without normalizing anything: a tangent that passes against a normal
 /// for which [`is_nearly_unit`] holds.
 #[inline]

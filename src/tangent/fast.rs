@@ -153,7 +153,7 @@ pub(crate) fn generate(
         |class: usize, repairs: &mut Vec<(u32, Problem)>, put: &mut dyn FnMut(usize, [f32; 4])| {
             let corners = table.of(class);
             let normal = mesh.normals[mesh.indices[corners[0] as usize] as usize];
-            let normal_ok = fallback::is_nearly_unit(normal);
+            let check_normal = fallback::check_normal(normal);
             // [preserving, mirrored] sums of s and t.
             let mut sums = [[[0.0f32; 3]; 2]; 2];
             for &corner in corners {
@@ -186,7 +186,7 @@ pub(crate) fn generate(
                         side == 0
                     };
                     let t = encode(tangent, orientation_preserving);
-                    (t, normal_ok && fallback::passes(&t, normal))
+                    (t, check_normal.is_some_and(|n| fallback::passes(&t, n)))
                 });
                 put(
                     corner,

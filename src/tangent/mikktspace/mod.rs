@@ -442,7 +442,7 @@ impl Context<'_> {
         }
         let raw = encode(normalize_or_zero(sum), orientation != 0);
         let normal = column(&batch.normal, offset);
-        let valid = fallback::is_nearly_unit(normal) && fallback::passes(&raw, normal);
+        let valid = fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, n));
         for &corner in corners {
             self.finish_corner(corner as usize, raw, valid, repairs, put);
         }
@@ -465,9 +465,9 @@ impl Context<'_> {
             return;
         };
         let normal = self.mesh.normals[self.mesh.indices[first as usize] as usize];
-        let normal_ok = fallback::is_nearly_unit(normal);
+        let check_normal = fallback::check_normal(normal);
         for (&corner, &tangent) in corners.iter().zip(raw) {
-            let ok = normal_ok && fallback::passes(&tangent, normal);
+            let ok = check_normal.is_some_and(|n| fallback::passes(&tangent, n));
             self.finish_corner(corner as usize, tangent, ok, repairs, put);
         }
         self.finish_degenerate(class, raw[0], degenerate, repairs, put);
