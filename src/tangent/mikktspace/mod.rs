@@ -430,16 +430,18 @@ impl Context<'_> {
         let column = |c: &[Vec<f32>; 3], j: usize| [c[0][j], c[1][j], c[2][j]];
         let (rs, rt) = (column(&batch.s, offset), column(&batch.t, offset));
         let rt2 = dot(rt, rt);
-        for j in slots.clone() {
-            let (s, t) = (column(&batch.s, j), column(&batch.t, j));
-            let d = dot(t, rt);
-            if !(dot(s, rs) > 0.01 && d > 0.0 && d * d > 1e-4 * (dot(t, t) * rt2)) {
-                return false;
-            }
-        }
+        // The test and the sum in one pass over the columns; the sum is wasted in the rare
+        // vertex that fails.
+        let mut single = true;
         let mut sum = [0.0f32; 3];
         for j in slots {
-            sum = add(sum, scale(column(&batch.s, j), batch.angle[j]));
+            let (s, t) = (column(&batch.s, j), column(&batch.t, j));
+            let d = dot(t, rt);
+            single &= dot(s, rs) > 0.01 && d > 0.0 && d * d > 1e-4 * (dot(t, t) * rt2);
+            sum = add(sum, scale(s, batch.angle[j]));
+        }
+        if !single {
+            return false;
         }
         let raw = encode(normalize_or_zero(sum), orientation != 0);
         let normal = column(&batch.normal, offset);
