@@ -445,9 +445,16 @@ impl Context<'_> {
         }
         let raw = encode(normalize_or_zero(sum), orientation != 0);
         let normal = column(&batch.normal, offset);
-        let valid = fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, n));
-        for &corner in corners {
-            self.finish_corner(corner as usize, raw, valid, repairs, put);
+        if fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, n)) {
+            // Valid: every corner gets the same finished tangent.
+            let tangent = fallback::with_w_convention(raw, self.flip_w);
+            for &corner in corners {
+                put(corner as usize, tangent);
+            }
+        } else {
+            for &corner in corners {
+                self.finish_corner(corner as usize, raw, false, repairs, put);
+            }
         }
         self.finish_degenerate(class, raw, degenerate, repairs, put);
         true
@@ -869,11 +876,12 @@ impl Batch {
         for at in 0..len {
             let corner = corners[at] as usize;
             let triangle = corner / 3;
-            let base = triangle * 3;
-            let i = corner - base;
-            let here = mesh.positions[mesh.indices[corner] as usize];
-            let next = mesh.positions[mesh.indices[base + NEXT[i]] as usize];
-            let prev = mesh.positions[mesh.indices[base + PREV[i]] as usize];
+            // One bounds check for the triangle's three indices; `i < 3` needs none.
+            let vertices = &mesh.indices[3 * triangle..3 * triangle + 3];
+            let i = corner % 3;
+            let here = mesh.positions[vertices[i] as usize];
+            let next = mesh.positions[vertices[NEXT[i]] as usize];
+            let prev = mesh.positions[vertices[PREV[i]] as usize];
             let frame = &context.frames[triangle];
             (fsx[at], fsy[at], fsz[at]) = (frame.s[0], frame.s[1], frame.s[2]);
             (ftx[at], fty[at], ftz[at]) = (frame.t[0], frame.t[1], frame.t[2]);
