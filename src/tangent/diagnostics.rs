@@ -122,48 +122,98 @@ impl TriangleCheck<'_> {
         p: &[[f32; 3]; 3],
         uv: &[[f32; 2]; 3],
     ) {
-        let index = index as u32;
-        if !self.non_finite_vertex.is_empty() && vertices.iter().any(|&v| self.non_finite_vertex[v])
-        {
-            tallies.non_finite.add(index);
+        if self.touches_non_finite(vertices) {
+            tallies.add_non_finite(index);
             return;
         }
-        if same_position(p[0], p[1]) || same_position(p[1], p[2]) || same_position(p[2], p[0]) {
-            tallies.duplicate.add(index);
+        self.record(tallies, index, self.events(p, uv));
+    }
+
+    /// Whether any vertex has a non-finite value (if not, no triangle needs looking up).
+    #[inline]
+    pub fn has_non_finite(&self) -> bool {
+        !self.non_finite_vertex.is_empty()
+    }
+
+    /// Whether the triangle uses a vertex with a non-finite value: then it is counted as such
+    /// and nothing else.
+    #[inline]
+    pub fn touches_non_finite(&self, vertices: [usize; 3]) -> bool {
+        !self.non_finite_vertex.is_empty() && vertices.iter().any(|&v| self.non_finite_vertex[v])
+    }
+
+    /// What the checks find in a triangle of finite vertices, as bits (`DUPLICATE` and the
+    /// others). Branch-free, so that a loop over many triangles vectorizes.
+    #[inline(always)]
+    pub fn events(&self, p: &[[f32; 3]; 3], uv: &[[f32; 2]; 3]) -> u8 {
+        let duplicate =
+            same_position(p[0], p[1]) | same_position(p[1], p[2]) | same_position(p[2], p[0]);
+        let e = [sub(p[1], p[0]), sub(p[2], p[0]), sub(p[2], p[1])];
+        let longest = dot(e[0], e[0]).max(dot(e[1], e[1])).max(dot(e[2], e[2]));
+        let zero_area = length(cross(e[0], e[1])) <= RELATIVE_AREA_EPSILON * longest;
+        let mut events = if duplicate {
+            DUPLICATE
+        } else if zero_area {
+            ZERO_AREA
         } else {
-            let e = [sub(p[1], p[0]), sub(p[2], p[0]), sub(p[2], p[1])];
-            let longest = e.iter().map(|&e| dot(e, e)).fold(0.0f32, f32::max);
-            if length(cross(e[0], e[1])) <= RELATIVE_AREA_EPSILON * longest {
-                tallies.zero_area.add(index);
-            }
-        }
+            0
+        };
         if self.has_uvs {
             let d1 = [uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]];
             let d2 = [uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]];
             let d3 = [uv[2][0] - uv[1][0], uv[2][1] - uv[1][1]];
             let signed = d1[0] * d2[1] - d1[1] * d2[0];
-            let longest = [d1, d2, d3]
-                .iter()
-                .map(|d| d[0] * d[0] + d[1] * d[1])
-                .fold(0.0f32, f32::max);
-            if signed.abs() <= RELATIVE_AREA_EPSILON * longest {
-                tallies.zero_uv.add(index);
+            let square = |d: [f32; 2]| d[0] * d[0] + d[1] * d[1];
+            let longest = square(d1).max(square(d2)).max(square(d3));
+            let zero_uv = signed.abs() <= RELATIVE_AREA_EPSILON * longest;
+            // With the origin at the top left (glTF), v runs downwards, so an unmirrored
+            // front face has a negative raw UV area.
+            let mirrored = match self.uv_origin {
+                UvOrigin::TopLeft => signed > 0.0,
+                UvOrigin::BottomLeft => signed < 0.0,
+            };
+            events |= if zero_uv {
+                ZERO_UV
+            } else if mirrored {
+                MIRRORED
             } else {
-                // With the origin at the top left (glTF), v runs downwards, so an unmirrored
-                // front face has a negative raw UV area.
-                let mirrored = match self.uv_origin {
-                    UvOrigin::TopLeft => signed > 0.0,
-                    UvOrigin::BottomLeft => signed < 0.0,
-                };
-                if mirrored {
-                    tallies.mirrored.add(index);
-                }
+                0
+            };
+        }
+        events
+    }
+
+    /// Adds triangle `index` to the tallies its `events` name.
+    #[inline]
+    pub fn record(&self, tallies: &mut TriangleTallies, index: usize, events: u8) {
+        if events == 0 {
+            return;
+        }
+        let index = index as u32;
+        for (bit, tally) in [
+            (DUPLICATE, &mut tallies.duplicate),
+            (ZERO_AREA, &mut tallies.zero_area),
+            (ZERO_UV, &mut tallies.zero_uv),
+            (MIRRORED, &mut tallies.mirrored),
+        ] {
+            if events & bit != 0 {
+                tally.add(index);
             }
         }
     }
 }
 
+/// Bits of [`TriangleCheck::events`].
+const DUPLICATE: u8 = 1;
+const ZERO_AREA: u8 = 2;
+const ZERO_UV: u8 = 4;
+const MIRRORED: u8 = 8;
+
 impl TriangleTallies {
+    pub fn add_non_finite(&mut self, index: usize) {
+        self.non_finite.add(index as u32);
+    }
+
     /// Appends the tallies of later triangles.
     pub fn append(mut self, later: TriangleTallies) -> TriangleTallies {
         self.duplicate.append(&later.duplicate);
