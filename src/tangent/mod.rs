@@ -27,6 +27,7 @@ mod mikktspace;
 mod normals;
 mod output;
 mod split;
+mod triangles;
 mod weld;
 
 pub use diagnostics::{Diagnostics, FallbackCounts, Tally};

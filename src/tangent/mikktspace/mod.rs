@@ -42,6 +42,7 @@ use super::math::{
 };
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
+use super::triangles::{BATCH, TriangleColumns};
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
 
@@ -78,24 +79,17 @@ pub(crate) fn generate(
     const CHUNK: usize = 16384;
     let classify = |(chunk, (frames, flags)): (usize, (&mut [Frame], &mut [u8]))| {
         let mut tallies = TriangleTallies::default();
-        let mut batch = TriangleBatch::default();
+        let mut triangles = TriangleColumns::default();
+        let mut columns = FrameColumns::default();
         let first = chunk * CHUNK;
         for (b, (frames, flags)) in frames
-            .chunks_mut(TRIANGLE_BATCH)
-            .zip(flags.chunks_mut(TRIANGLE_BATCH))
+            .chunks_mut(BATCH)
+            .zip(flags.chunks_mut(BATCH))
             .enumerate()
         {
-            let start = first + b * TRIANGLE_BATCH;
-            batch.classify(mesh, check, start, frames, flags);
-            for (k, &events) in batch.events[..frames.len()].iter().enumerate() {
-                let t = start + k;
-                // Asked first, so that the common mesh does not read the indices again.
-                if check.has_non_finite() && check.touches_non_finite(mesh.triangle(t)) {
-                    tallies.add_non_finite(t);
-                } else {
-                    check.record(&mut tallies, t, events);
-                }
-            }
+            triangles.gather(mesh, first + b * BATCH, frames.len());
+            columns.compute(&mut triangles, check, frames, flags);
+            triangles.tally(mesh, check, &mut tallies);
         }
         tallies
     };
@@ -204,136 +198,108 @@ struct Piece {
     touched: Vec<u32>,
 }
 
-/// Triangles per batch of the triangle pass.
-const TRIANGLE_BATCH: usize = 64;
-
-/// A batch of triangles for the triangle pass: their corners gathered into columns, so that
-/// the frames and the diagnostics' checks run as vectorized loops (each frame takes four square
-/// roots and four divisions, which one at a time kept the divider busy for most of the pass).
-/// The loops always run over the whole batch; past the last triangle of a short batch they
-/// compute on stale inputs, whose results are never read.
-struct TriangleBatch {
-    /// `p[corner][axis][k]`: position of corner `corner` of the batch's triangle `k`.
-    p: [[[f32; TRIANGLE_BATCH]; 3]; 3],
-    uv: [[[f32; TRIANGLE_BATCH]; 2]; 3],
-    /// What [`TriangleCheck::events`] found in each triangle.
-    events: [u8; TRIANGLE_BATCH],
-    /// The frames and flags, in columns until they are copied out.
-    frame_s: [[f32; TRIANGLE_BATCH]; 3],
-    frame_t: [[f32; TRIANGLE_BATCH]; 3],
-    flags: [u8; TRIANGLE_BATCH],
+/// Frames and flags of a batch of triangles, in columns until they are copied out (see
+/// [`super::triangles`]).
+struct FrameColumns {
+    s: [[f32; BATCH]; 3],
+    t: [[f32; BATCH]; 3],
+    flags: [u8; BATCH],
 }
 
-impl Default for TriangleBatch {
-    fn default() -> TriangleBatch {
-        TriangleBatch {
-            p: [[[0.0; TRIANGLE_BATCH]; 3]; 3],
-            uv: [[[0.0; TRIANGLE_BATCH]; 2]; 3],
-            events: [0; TRIANGLE_BATCH],
-            frame_s: [[0.0; TRIANGLE_BATCH]; 3],
-            frame_t: [[0.0; TRIANGLE_BATCH]; 3],
-            flags: [0; TRIANGLE_BATCH],
+impl Default for FrameColumns {
+    fn default() -> FrameColumns {
+        FrameColumns {
+            s: [[0.0; BATCH]; 3],
+            t: [[0.0; BATCH]; 3],
+            flags: [0; BATCH],
         }
     }
 }
 
-impl TriangleBatch {
-    /// Frames, flags and check events of the triangles from `start` on, as many as `frames`
-    /// holds (at most [`TRIANGLE_BATCH`]).
-    fn classify(
+impl FrameColumns {
+    /// Frames, flags and check events of the gathered `triangles`; the frames and flags go to
+    /// `frames` and `flags` (one per triangle of the batch).
+    fn compute(
         &mut self,
-        mesh: &Mesh<'_>,
+        triangles: &mut TriangleColumns,
         check: &TriangleCheck<'_>,
-        start: usize,
         frames: &mut [Frame],
         flags: &mut [u8],
     ) {
-        for k in 0..frames.len() {
-            let v = mesh.triangle(start + k);
-            for (corner, &v) in v.iter().enumerate() {
-                let p = mesh.positions[v];
-                let uv = mesh.uv(v);
-                (
-                    self.p[corner][0][k],
-                    self.p[corner][1][k],
-                    self.p[corner][2][k],
-                ) = (p[0], p[1], p[2]);
-                (self.uv[corner][0][k], self.uv[corner][1][k]) = (uv[0], uv[1]);
-            }
-        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU was just found to support AVX-512F, the only requirement.
-            return unsafe { self.compute_avx512(check, frames, flags) };
+            return unsafe { self.compute_avx512(triangles, check, frames, flags) };
         }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU was just found to support AVX2, the only requirement.
-            return unsafe { self.compute_avx2(check, frames, flags) };
+            return unsafe { self.compute_avx2(triangles, check, frames, flags) };
         }
-        self.compute(check, frames, flags);
+        self.compute_portable(triangles, check, frames, flags);
     }
 
     /// See `Batch::evaluate_columns_avx2`: only the vector width changes.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn compute_avx2(&mut self, check: &TriangleCheck<'_>, f: &mut [Frame], g: &mut [u8]) {
-        self.compute(check, f, g);
+    unsafe fn compute_avx2(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        frames: &mut [Frame],
+        flags: &mut [u8],
+    ) {
+        self.compute_portable(triangles, check, frames, flags);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    unsafe fn compute_avx512(&mut self, check: &TriangleCheck<'_>, f: &mut [Frame], g: &mut [u8]) {
-        self.compute(check, f, g);
+    unsafe fn compute_avx512(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        frames: &mut [Frame],
+        flags: &mut [u8],
+    ) {
+        self.compute_portable(triangles, check, frames, flags);
     }
 
     #[inline(always)]
-    fn compute(&mut self, check: &TriangleCheck<'_>, frames: &mut [Frame], flags: &mut [u8]) {
-        let n = frames.len().min(TRIANGLE_BATCH);
-        let [p0, p1, p2] = &self.p;
-        let [t0, t1, t2] = &self.uv;
-        // Element by element: `map` over the arrays was not inlined.
-        let corners = |k: usize| {
-            let p = [
-                [p0[0][k], p0[1][k], p0[2][k]],
-                [p1[0][k], p1[1][k], p1[2][k]],
-                [p2[0][k], p2[1][k], p2[2][k]],
-            ];
-            let uv = [
-                [t0[0][k], t0[1][k]],
-                [t1[0][k], t1[1][k]],
-                [t2[0][k], t2[1][k]],
-            ];
-            (p, uv)
-        };
-        // Results in columns too: the loops then vectorize, and the frames are copied out
-        // after.
-        let [sx, sy, sz] = &mut self.frame_s;
-        let [tx, ty, tz] = &mut self.frame_t;
-        for k in 0..TRIANGLE_BATCH {
-            let (p, uv) = corners(k);
+    fn compute_portable(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        frames: &mut [Frame],
+        flags: &mut [u8],
+    ) {
+        let [sx, sy, sz] = &mut self.s;
+        let [tx, ty, tz] = &mut self.t;
+        for k in 0..BATCH {
+            let (p, uv) = triangles.corners(k);
             let (frame, flag) = triangle_frame(&p, &uv);
             (sx[k], sy[k], sz[k]) = (frame.s[0], frame.s[1], frame.s[2]);
             (tx[k], ty[k], tz[k]) = (frame.t[0], frame.t[1], frame.t[2]);
             self.flags[k] = flag;
         }
-        for k in 0..TRIANGLE_BATCH {
-            let (p, uv) = corners(k);
-            self.events[k] = check.events(&p, &uv);
-        }
-        for k in 0..n {
-            frames[k] = Frame {
+        triangles.check(check);
+        for (k, (frame, flag)) in frames
+            .iter_mut()
+            .zip(flags.iter_mut())
+            .enumerate()
+            .take(BATCH)
+        {
+            *frame = Frame {
                 s: [sx[k], sy[k], sz[k]],
                 t: [tx[k], ty[k], tz[k]],
             };
-            flags[k] = self.flags[k];
+            *flag = self.flags[k];
         }
     }
 }
 
 /// The reference's per-triangle set-up, in its operation order so results are bit-identical.
 /// Branch-free (every value is computed, then the right ones selected), so that the loop over a
-/// [`TriangleBatch`] vectorizes.
+/// batch (see [`super::triangles`]) vectorizes.
 #[inline(always)]
 fn triangle_frame(p: &[[f32; 3]; 3], tx: &[[f32; 2]; 3]) -> (Frame, u8) {
     let degenerate =

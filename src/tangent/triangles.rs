@@ -1,0 +1,99 @@
+//! Per-triangle passes in batches: a method's per-triangle set-up (a frame, a face) takes several
+//! square roots and divisions, which one triangle at a time keep the divider busy for most of
+//! the pass. Gathered into columns, [`BATCH`] triangles at a time, the same arithmetic runs as
+//! vectorized loops. The diagnostics' triangle checks ride along: they read the same corners.
+//!
+//! A method's loops always run over the whole batch; past the last triangle of a short batch
+//! they compute on stale inputs, whose results are never read.
+
+use super::diagnostics::{TriangleCheck, TriangleTallies};
+use super::math::Mesh;
+
+/// Triangles per batch.
+pub(crate) const BATCH: usize = 64;
+
+/// The corners of a batch of triangles, in columns.
+pub(crate) struct TriangleColumns {
+    /// `p[corner][axis][k]`: position of corner `corner` of the batch's triangle `k`.
+    p: [[[f32; BATCH]; 3]; 3],
+    uv: [[[f32; BATCH]; 2]; 3],
+    /// What [`TriangleCheck::events`] found in each triangle.
+    events: [u8; BATCH],
+    /// The first triangle of the batch, and how many there are.
+    start: usize,
+    len: usize,
+}
+
+impl Default for TriangleColumns {
+    fn default() -> TriangleColumns {
+        TriangleColumns {
+            p: [[[0.0; BATCH]; 3]; 3],
+            uv: [[[0.0; BATCH]; 2]; 3],
+            events: [0; BATCH],
+            start: 0,
+            len: 0,
+        }
+    }
+}
+
+impl TriangleColumns {
+    /// Gathers the `len` (at most [`BATCH`]) triangles from `start` on.
+    pub fn gather(&mut self, mesh: &Mesh<'_>, start: usize, len: usize) {
+        let len = len.min(BATCH);
+        (self.start, self.len) = (start, len);
+        for k in 0..len {
+            for (corner, &v) in mesh.triangle(start + k).iter().enumerate() {
+                let p = mesh.positions[v];
+                let uv = mesh.uv(v);
+                (
+                    self.p[corner][0][k],
+                    self.p[corner][1][k],
+                    self.p[corner][2][k],
+                ) = (p[0], p[1], p[2]);
+                (self.uv[corner][0][k], self.uv[corner][1][k]) = (uv[0], uv[1]);
+            }
+        }
+    }
+
+    /// Triangle `k` of the batch: its positions and texture coordinates (zeros without UVs).
+    #[inline(always)]
+    pub fn corners(&self, k: usize) -> ([[f32; 3]; 3], [[f32; 2]; 3]) {
+        let [p0, p1, p2] = &self.p;
+        let [t0, t1, t2] = &self.uv;
+        // Element by element: `map` over the arrays is not inlined.
+        let p = [
+            [p0[0][k], p0[1][k], p0[2][k]],
+            [p1[0][k], p1[1][k], p1[2][k]],
+            [p2[0][k], p2[1][k], p2[2][k]],
+        ];
+        let uv = [
+            [t0[0][k], t0[1][k]],
+            [t1[0][k], t1[1][k]],
+            [t2[0][k], t2[1][k]],
+        ];
+        (p, uv)
+    }
+
+    /// Runs the diagnostics' triangle checks over the batch. Always inlined, so that it is
+    /// compiled with the vector features of the method's loop that calls it.
+    #[inline(always)]
+    pub fn check(&mut self, check: &TriangleCheck<'_>) {
+        for k in 0..BATCH {
+            let (p, uv) = self.corners(k);
+            self.events[k] = check.events(&p, &uv);
+        }
+    }
+
+    /// Adds what [`TriangleColumns::check`] found to `tallies`, triangle by triangle.
+    pub fn tally(&self, mesh: &Mesh<'_>, check: &TriangleCheck<'_>, tallies: &mut TriangleTallies) {
+        for (k, &events) in self.events[..self.len].iter().enumerate() {
+            let t = self.start + k;
+            // Asked first, so that the common mesh does not read the indices again.
+            if check.has_non_finite() && check.touches_non_finite(mesh.triangle(t)) {
+                tallies.add_non_finite(t);
+            } else {
+                check.record(tallies, t, events);
+            }
+        }
+    }
+}
