@@ -8,11 +8,12 @@ use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTal
 use super::fallback::{self, Problem};
 use super::fill::filled;
 use super::math::{
-    Mesh, add, cross, dot, encode, is_finite3, length, normalize_or_zero, reject, same_position,
-    scale, sub,
+    Mesh, add, cross, dot, encode, is_finite3, length, normalize_or_zero,
+    normalize_or_zero_branchless, reject, same_position, scale, sub,
 };
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
+use super::triangles::{BATCH, TriangleColumns};
 use super::weld::{CornerTable, weld_mesh};
 use rayon::prelude::*;
 
@@ -29,6 +30,7 @@ struct Face {
 
 /// arccos to within 7e-5 rad (Abramowitz and Stegun 4.4.45). Weights need no more, and this is
 /// a few multiplications where the exact one (as MikkTSpace must use) costs a libm call.
+#[inline(always)]
 fn acos_approx(x: f32) -> f32 {
     let x = x.clamp(-1.0, 1.0);
     let a = x.abs();
@@ -40,10 +42,11 @@ fn acos_approx(x: f32) -> f32 {
 
 /// The three corner angles of a triangle, from its three unit edges: each edge serves two
 /// corners (negated for one of them, which is exact), so three normalizations do for six.
+#[inline(always)]
 fn corner_angles(p: &[[f32; 3]; 3]) -> [f32; 3] {
-    let e01 = normalize_or_zero(sub(p[1], p[0]));
-    let e12 = normalize_or_zero(sub(p[2], p[1]));
-    let e20 = normalize_or_zero(sub(p[0], p[2]));
+    let e01 = normalize_or_zero_branchless(sub(p[1], p[0]));
+    let e12 = normalize_or_zero_branchless(sub(p[2], p[1]));
+    let e20 = normalize_or_zero_branchless(sub(p[0], p[2]));
     [
         acos_approx(-dot(e01, e20)),
         acos_approx(-dot(e12, e01)),
@@ -51,11 +54,12 @@ fn corner_angles(p: &[[f32; 3]; 3]) -> [f32; 3] {
     ]
 }
 
+/// Branch-free (every value is computed, then the right ones selected), so that the loop over a
+/// batch (see [`super::triangles`]) vectorizes.
+#[inline(always)]
 fn face(p: &[[f32; 3]; 3], uv: &[[f32; 2]; 3], weighting: Weighting) -> Face {
     let [p0, p1, p2] = *p;
-    if same_position(p0, p1) || same_position(p1, p2) || same_position(p2, p0) {
-        return Face::default();
-    }
+    let degenerate = same_position(p0, p1) | same_position(p1, p2) | same_position(p2, p0);
     let [t0, t1, t2] = *uv;
     let (e1, e2) = (sub(p1, p0), sub(p2, p0));
     let (du1, dv1, du2, dv2) = (t1[0] - t0[0], t1[1] - t0[1], t2[0] - t0[0], t2[1] - t0[1]);
@@ -71,12 +75,10 @@ fn face(p: &[[f32; 3]; 3], uv: &[[f32; 2]; 3], weighting: Weighting) -> Face {
         0.0
     };
     let (s, t) = (
-        normalize_or_zero(scale(s, sign)),
-        normalize_or_zero(scale(t, sign)),
+        normalize_or_zero_branchless(scale(s, sign)),
+        normalize_or_zero_branchless(scale(t, sign)),
     );
-    if sign == 0.0 || !is_finite3(s) || !is_finite3(t) || dot(s, s) == 0.0 {
-        return Face::default();
-    }
+    let usable = !degenerate & (sign != 0.0) & is_finite3(s) & is_finite3(t) & (dot(s, s) != 0.0);
     // Weights are computed here, where the triangle's positions are at hand, rather than per
     // corner later, which would fetch them again in welded-vertex order.
     let weights = match weighting {
@@ -86,11 +88,113 @@ fn face(p: &[[f32; 3]; 3], uv: &[[f32; 2]; 3], weighting: Weighting) -> Face {
         }
         Weighting::Angle => corner_angles(p),
     };
-    Face {
-        s,
-        t,
-        sign,
-        weights,
+    if usable {
+        Face {
+            s,
+            t,
+            sign,
+            weights,
+        }
+    } else {
+        Face::default()
+    }
+}
+
+/// Faces of a batch of triangles, in columns until they are copied out.
+struct FaceColumns {
+    s: [[f32; BATCH]; 3],
+    t: [[f32; BATCH]; 3],
+    sign: [f32; BATCH],
+    weights: [[f32; BATCH]; 3],
+}
+
+impl Default for FaceColumns {
+    fn default() -> FaceColumns {
+        FaceColumns {
+            s: [[0.0; BATCH]; 3],
+            t: [[0.0; BATCH]; 3],
+            sign: [0.0; BATCH],
+            weights: [[0.0; BATCH]; 3],
+        }
+    }
+}
+
+impl FaceColumns {
+    /// Faces and check events of the gathered `triangles`; the faces go to `faces` (one per
+    /// triangle of the batch).
+    fn compute(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        weighting: Weighting,
+        faces: &mut [Face],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU was just found to support AVX-512F, the only requirement.
+            return unsafe { self.compute_avx512(triangles, check, weighting, faces) };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU was just found to support AVX2, the only requirement.
+            return unsafe { self.compute_avx2(triangles, check, weighting, faces) };
+        }
+        self.compute_portable(triangles, check, weighting, faces);
+    }
+
+    /// Only the vector width changes: no operation is fused, so the results are the same.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn compute_avx2(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        weighting: Weighting,
+        faces: &mut [Face],
+    ) {
+        self.compute_portable(triangles, check, weighting, faces);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn compute_avx512(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        weighting: Weighting,
+        faces: &mut [Face],
+    ) {
+        self.compute_portable(triangles, check, weighting, faces);
+    }
+
+    #[inline(always)]
+    fn compute_portable(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        weighting: Weighting,
+        faces: &mut [Face],
+    ) {
+        let [sx, sy, sz] = &mut self.s;
+        let [tx, ty, tz] = &mut self.t;
+        let [w0, w1, w2] = &mut self.weights;
+        for k in 0..BATCH {
+            let (p, uv) = triangles.corners(k);
+            let f = face(&p, &uv, weighting);
+            (sx[k], sy[k], sz[k]) = (f.s[0], f.s[1], f.s[2]);
+            (tx[k], ty[k], tz[k]) = (f.t[0], f.t[1], f.t[2]);
+            (w0[k], w1[k], w2[k]) = (f.weights[0], f.weights[1], f.weights[2]);
+            self.sign[k] = f.sign;
+        }
+        triangles.check(check);
+        for (k, face) in faces.iter_mut().enumerate().take(BATCH) {
+            *face = Face {
+                s: [sx[k], sy[k], sz[k]],
+                t: [tx[k], ty[k], tz[k]],
+                sign: self.sign[k],
+                weights: [w0[k], w1[k], w2[k]],
+            };
+        }
     }
 }
 
@@ -110,17 +214,12 @@ pub(crate) fn generate(
     const CHUNK: usize = 16384;
     let classify = |(chunk, faces): (usize, &mut [Face])| {
         let mut tallies = TriangleTallies::default();
-        for (k, face_out) in faces.iter_mut().enumerate() {
-            let t = chunk * CHUNK + k;
-            let v = mesh.triangle(t);
-            let p = [
-                mesh.positions[v[0]],
-                mesh.positions[v[1]],
-                mesh.positions[v[2]],
-            ];
-            let uv = [mesh.uv(v[0]), mesh.uv(v[1]), mesh.uv(v[2])];
-            *face_out = face(&p, &uv, weighting);
-            check.check(&mut tallies, t, v, &p, &uv);
+        let mut triangles = TriangleColumns::default();
+        let mut columns = FaceColumns::default();
+        for (b, faces) in faces.chunks_mut(BATCH).enumerate() {
+            triangles.gather(mesh, chunk * CHUNK + b * BATCH, faces.len());
+            columns.compute(&mut triangles, check, weighting, faces);
+            triangles.tally(mesh, check, &mut tallies);
         }
         tallies
     };

@@ -98,6 +98,15 @@ pub(crate) fn normalize_or_zero(a: [f32; 3]) -> [f32; 3] {
     }
 }
 
+/// [`normalize_or_zero`] written as a select, so that a loop around it vectorizes (same
+/// results).
+#[inline(always)]
+pub(crate) fn normalize_or_zero_branchless(a: [f32; 3]) -> [f32; 3] {
+    let keep = not_zero(a[0]) | not_zero(a[1]) | not_zero(a[2]);
+    let scaled = scale(a, 1.0 / length(a));
+    if keep { scaled } else { a }
+}
+
 /// `a` with its component along `n` removed: `a - (n·a) n`.
 #[inline]
 pub(crate) fn reject(a: [f32; 3], n: [f32; 3]) -> [f32; 3] {

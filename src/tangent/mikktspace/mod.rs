@@ -37,8 +37,8 @@ use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTal
 use super::fallback::{self, Problem};
 use super::fill::filled;
 use super::math::{
-    Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero, not_zero, reject,
-    same_position, scale, sub,
+    Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero,
+    normalize_or_zero_branchless, not_zero, reject, same_position, scale, sub,
 };
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
@@ -1082,14 +1082,6 @@ fn matches_in_block(block: &[u32], x: u32) -> u32 {
 
 const NEXT: [usize; 3] = [1, 2, 0];
 const PREV: [usize; 3] = [2, 0, 1];
-
-/// [`normalize_or_zero`] written as a select, so that the loop around it vectorizes.
-#[inline(always)]
-fn normalize_or_zero_branchless(a: [f32; 3]) -> [f32; 3] {
-    let keep = not_zero(a[0]) | not_zero(a[1]) | not_zero(a[2]);
-    let scaled = scale(a, 1.0 / length(a));
-    if keep { scaled } else { a }
-}
 
 #[derive(Default)]
 struct EvalScratch {
