@@ -18,6 +18,7 @@ use super::fill::filled;
 use super::math::{any_orthogonal, unit};
 use super::split::SplitPlan;
 use super::weld::NONE;
+use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 pub(crate) struct SharedSplit<'a> {
@@ -27,6 +28,8 @@ pub(crate) struct SharedSplit<'a> {
     vertex_tangents: Vec<[AtomicU32; 4]>,
     /// The first duplicate of each input vertex, in its owner's [`Copies`].
     first_copy: Vec<AtomicU32>,
+    /// Whether [`SharedSplit::finish`] may use the thread pool.
+    parallel: bool,
 }
 
 /// Duplicated vertices made by one worker, numbered locally.
@@ -59,6 +62,7 @@ impl<'a> SharedSplit<'a> {
             indices,
             vertex_tangents: filled(vertex_count, parallel, || [const { AtomicU32::new(0) }; 4]),
             first_copy: filled(vertex_count, parallel, || AtomicU32::new(NONE)),
+            parallel,
         }
     }
 
@@ -112,12 +116,15 @@ impl<'a> SharedSplit<'a> {
         let mut source_vertex: Vec<u32> = Vec::with_capacity(vertex_count + added);
         source_vertex.extend(0..vertex_count as u32);
         let mut vertex_tangents: Vec<[f32; 4]> = Vec::with_capacity(vertex_count + added);
-        vertex_tangents.extend(
-            self.vertex_tangents
-                .into_iter()
-                .map(|lanes| lanes.map(|lane| f32::from_bits(lane.into_inner()))),
-        );
-        let mut indices = self.indices.to_vec();
+        let unpack = |lanes: [AtomicU32; 4]| lanes.map(|lane| f32::from_bits(lane.into_inner()));
+        let mut indices: Vec<u32> = Vec::with_capacity(self.indices.len());
+        if self.parallel {
+            vertex_tangents.par_extend(self.vertex_tangents.into_par_iter().map(unpack));
+            indices.par_extend(self.indices.par_iter().copied());
+        } else {
+            vertex_tangents.extend(self.vertex_tangents.into_iter().map(unpack));
+            indices.extend_from_slice(self.indices);
+        }
         // A vertex whose duplicate has the other handedness saw both.
         let mut flipped: Vec<u32> = Vec::new();
         for part in parts {
@@ -140,20 +147,49 @@ impl<'a> SharedSplit<'a> {
             flips.add(v);
         }
 
-        let mut mixed = Tally::default();
-        for (t, corners) in indices.chunks_exact(3).enumerate() {
-            let positive = |k: usize| vertex_tangents[corners[k] as usize][3] > 0.0;
-            if positive(0) != positive(1) || positive(0) != positive(2) {
-                mixed.add(t as u32);
+        // Triangles whose corners got tangents of different handedness, by runs of triangles.
+        const RUN: usize = 16384;
+        let mixed_in = |(run, corners): (usize, &[u32])| {
+            let mut mixed = Tally::default();
+            for (k, corners) in corners.chunks_exact(3).enumerate() {
+                let positive = |i: usize| vertex_tangents[corners[i] as usize][3] > 0.0;
+                if positive(0) != positive(1) || positive(0) != positive(2) {
+                    mixed.add((run * RUN + k) as u32);
+                }
             }
+            mixed
+        };
+        let runs: Vec<Tally> = if self.parallel {
+            indices
+                .par_chunks(3 * RUN)
+                .enumerate()
+                .map(mixed_in)
+                .collect()
+        } else {
+            indices.chunks(3 * RUN).enumerate().map(mixed_in).collect()
+        };
+        let mut mixed = Tally::default();
+        for run in &runs {
+            mixed.append(run);
         }
-        for (tangent, normal) in vertex_tangents.iter_mut().zip(normals) {
+        let give_unused_a_tangent = |(tangent, normal): (&mut [f32; 4], &[f32; 3])| {
             if tangent[3] == 0.0 {
                 // Vertices no triangle uses still need a valid tangent in the output.
                 let n = unit(*normal).unwrap_or([0.0, 0.0, 1.0]);
                 let t = any_orthogonal(n);
                 *tangent = [t[0], t[1], t[2], 1.0];
             }
+        };
+        if self.parallel {
+            vertex_tangents
+                .par_iter_mut()
+                .zip(normals)
+                .for_each(give_unused_a_tangent);
+        } else {
+            vertex_tangents
+                .iter_mut()
+                .zip(normals)
+                .for_each(give_unused_a_tangent);
         }
         diagnostics.handedness_flip_vertices = flips;
         diagnostics.mixed_handedness_triangles = mixed;
