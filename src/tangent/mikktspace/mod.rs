@@ -400,23 +400,28 @@ impl Context<'_> {
             batch.compute(self, start..end);
             for class in start..end {
                 let corners = self.table.of(class);
-                if corners
-                    .iter()
-                    .any(|&c| flags[c as usize / 3] & GROUP_WITH_ANY != 0)
-                {
+                // The flags all corners' triangles have, and those any of them has.
+                let (all, any) = corners.iter().fold((u8::MAX, 0u8), |(all, any), &c| {
+                    let flag = flags[c as usize / 3];
+                    (all & flag, any | flag)
+                });
+                if any & GROUP_WITH_ANY != 0 {
                     piece.touched.push(class as u32);
                     continue;
                 }
+                let one_orientation = (all ^ any) & ORIENT_PRESERVING == 0;
                 let offset = self.table.offsets[class] as usize - first_slot;
-                if self.try_one_group(
-                    class,
-                    flags,
-                    &batch,
-                    offset,
-                    degenerate,
-                    &mut piece.repairs,
-                    put,
-                ) {
+                if one_orientation
+                    && self.try_one_group(
+                        class,
+                        any & ORIENT_PRESERVING,
+                        &batch,
+                        offset,
+                        degenerate,
+                        &mut piece.repairs,
+                        put,
+                    )
+                {
                     continue;
                 }
                 self.pair_edges(class, &mut scratch);
@@ -442,7 +447,9 @@ impl Context<'_> {
         piece
     }
 
-    /// The common vertex, without the general machinery: its triangles share one orientation,
+    /// The common vertex, without the general machinery: its triangles share one orientation
+    /// (the caller checks that, and that none may "group with anything"; `orientation` is their
+    /// `ORIENT_PRESERVING` bit),
     /// every edge around it pairs unambiguously (no other vertex is reached twice the same way),
     /// the pairs connect all its corners into one group, and no two frames can be opposite.
     /// Then the general path would find one group summed in ascending order, which is what is
@@ -451,7 +458,7 @@ impl Context<'_> {
     fn try_one_group<P: FnMut(usize, [f32; 4])>(
         &self,
         class: usize,
-        flags: &[u8],
+        orientation: u8,
         batch: &Batch,
         offset: usize,
         degenerate: &[(u32, u32)],
@@ -464,7 +471,6 @@ impl Context<'_> {
         if k == 0 || k > MAX {
             return false;
         }
-        let orientation = flags[corners[0] as usize / 3] & ORIENT_PRESERVING;
         // The other ends of the edges arriving at and leaving each corner. Unused places of
         // `arriving` hold `NONE`, which no class equals, so that the matching below can compare
         // whole blocks of eight (a few vector instructions) instead of looping over k.
@@ -472,10 +478,6 @@ impl Context<'_> {
         let mut leaving = [0u32; MAX];
         for (j, &corner) in corners.iter().enumerate() {
             let corner = corner as usize;
-            let flag = flags[corner / 3];
-            if flag & GROUP_WITH_ANY != 0 || flag & ORIENT_PRESERVING != orientation {
-                return false;
-            }
             let base = corner - corner % 3;
             let i = corner - base;
             arriving[j] = self.corner_class[base + PREV[i]];
