@@ -209,6 +209,13 @@ const ZERO_AREA: u8 = 2;
 const ZERO_UV: u8 = 4;
 const MIRRORED: u8 = 8;
 
+/// Tallies of consecutive runs of triangles, appended in order.
+impl std::iter::Sum for TriangleTallies {
+    fn sum<I: Iterator<Item = TriangleTallies>>(runs: I) -> TriangleTallies {
+        runs.fold(TriangleTallies::default(), TriangleTallies::append)
+    }
+}
+
 impl TriangleTallies {
     pub fn add_non_finite(&mut self, index: usize) {
         self.non_finite.add(index as u32);
@@ -266,11 +273,9 @@ pub(crate) fn analyze_triangles(
             .map(chunk)
             .collect::<Vec<_>>()
             .into_iter()
-            .fold(TriangleTallies::default(), TriangleTallies::append)
+            .sum()
     } else {
-        (0..chunk_count)
-            .map(chunk)
-            .fold(TriangleTallies::default(), TriangleTallies::append)
+        (0..chunk_count).map(chunk).sum()
     }
 }
 

@@ -14,6 +14,7 @@ use super::math::{
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
 use super::triangles::{BATCH, TriangleColumns};
+use super::vectors::widest_vectors;
 use super::weld::{CornerTable, weld_mesh};
 use rayon::prelude::*;
 
@@ -120,51 +121,16 @@ impl Default for FaceColumns {
 }
 
 impl FaceColumns {
-    /// Faces and check events of the gathered `triangles`; the faces go to `faces` (one per
-    /// triangle of the batch).
-    fn compute(
-        &mut self,
-        triangles: &mut TriangleColumns,
-        check: &TriangleCheck<'_>,
-        weighting: Weighting,
-        faces: &mut [Face],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU was just found to support AVX-512F, the only requirement.
-            return unsafe { self.compute_avx512(triangles, check, weighting, faces) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU was just found to support AVX2, the only requirement.
-            return unsafe { self.compute_avx2(triangles, check, weighting, faces) };
-        }
-        self.compute_portable(triangles, check, weighting, faces);
-    }
-
-    /// Only the vector width changes: no operation is fused, so the results are the same.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn compute_avx2(
-        &mut self,
-        triangles: &mut TriangleColumns,
-        check: &TriangleCheck<'_>,
-        weighting: Weighting,
-        faces: &mut [Face],
-    ) {
-        self.compute_portable(triangles, check, weighting, faces);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn compute_avx512(
-        &mut self,
-        triangles: &mut TriangleColumns,
-        check: &TriangleCheck<'_>,
-        weighting: Weighting,
-        faces: &mut [Face],
-    ) {
-        self.compute_portable(triangles, check, weighting, faces);
+    widest_vectors! {
+        /// Faces and check events of the gathered `triangles`; the faces go to `faces` (one per
+        /// triangle of the batch).
+        fn compute / compute_avx512 / compute_avx2 (
+            &mut self,
+            triangles: &mut TriangleColumns,
+            check: &TriangleCheck<'_>,
+            weighting: Weighting,
+            faces: &mut [Face],
+        ) => compute_portable
     }
 
     #[inline(always)]
@@ -228,15 +194,11 @@ pub(crate) fn generate(
             .par_chunks_mut(CHUNK)
             .enumerate()
             .map(classify)
-            .collect::<Vec<_>>()
+            .collect::<Vec<TriangleTallies>>()
             .into_iter()
-            .fold(TriangleTallies::default(), TriangleTallies::append)
+            .sum()
     } else {
-        faces
-            .chunks_mut(CHUNK)
-            .enumerate()
-            .map(classify)
-            .fold(TriangleTallies::default(), TriangleTallies::append)
+        faces.chunks_mut(CHUNK).enumerate().map(classify).sum()
     };
     diagnostics.set_triangles(triangles);
     let weld = weld_mesh(mesh, parallel);

@@ -28,6 +28,7 @@ mod normals;
 mod output;
 mod split;
 mod triangles;
+mod vectors;
 mod weld;
 
 pub use diagnostics::{Diagnostics, FallbackCounts, Tally};

@@ -43,6 +43,7 @@ use super::math::{
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
 use super::triangles::{BATCH, TriangleColumns};
+use super::vectors::widest_vectors;
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
 
@@ -99,16 +100,16 @@ pub(crate) fn generate(
             .zip(flags.par_chunks_mut(CHUNK))
             .enumerate()
             .map(classify)
-            .collect::<Vec<_>>()
+            .collect::<Vec<TriangleTallies>>()
             .into_iter()
-            .fold(TriangleTallies::default(), TriangleTallies::append)
+            .sum()
     } else {
         frames
             .chunks_mut(CHUNK)
             .zip(flags.chunks_mut(CHUNK))
             .enumerate()
             .map(classify)
-            .fold(TriangleTallies::default(), TriangleTallies::append)
+            .sum()
     };
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
@@ -217,51 +218,16 @@ impl Default for FrameColumns {
 }
 
 impl FrameColumns {
-    /// Frames, flags and check events of the gathered `triangles`; the frames and flags go to
-    /// `frames` and `flags` (one per triangle of the batch).
-    fn compute(
-        &mut self,
-        triangles: &mut TriangleColumns,
-        check: &TriangleCheck<'_>,
-        frames: &mut [Frame],
-        flags: &mut [u8],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU was just found to support AVX-512F, the only requirement.
-            return unsafe { self.compute_avx512(triangles, check, frames, flags) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU was just found to support AVX2, the only requirement.
-            return unsafe { self.compute_avx2(triangles, check, frames, flags) };
-        }
-        self.compute_portable(triangles, check, frames, flags);
-    }
-
-    /// See `Batch::evaluate_columns_avx2`: only the vector width changes.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn compute_avx2(
-        &mut self,
-        triangles: &mut TriangleColumns,
-        check: &TriangleCheck<'_>,
-        frames: &mut [Frame],
-        flags: &mut [u8],
-    ) {
-        self.compute_portable(triangles, check, frames, flags);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn compute_avx512(
-        &mut self,
-        triangles: &mut TriangleColumns,
-        check: &TriangleCheck<'_>,
-        frames: &mut [Frame],
-        flags: &mut [u8],
-    ) {
-        self.compute_portable(triangles, check, frames, flags);
+    widest_vectors! {
+        /// Frames, flags and check events of the gathered `triangles`; the frames and flags go
+        /// to `frames` and `flags` (one per triangle of the batch).
+        fn compute / compute_avx512 / compute_avx2 (
+            &mut self,
+            triangles: &mut TriangleColumns,
+            check: &TriangleCheck<'_>,
+            frames: &mut [Frame],
+            flags: &mut [u8],
+        ) => compute_portable
     }
 
     #[inline(always)]
@@ -993,38 +959,10 @@ impl Batch {
         self.evaluate_columns();
     }
 
-    /// The reference's per-corner arithmetic, in its operation order, column by column.
-    fn evaluate_columns(&mut self) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU was just found to support AVX-512F, the only requirement of
-            // `evaluate_columns_avx512`.
-            return unsafe { self.evaluate_columns_avx512() };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU was just found to support AVX2, the only requirement of
-            // `evaluate_columns_avx2`.
-            return unsafe { self.evaluate_columns_avx2() };
-        }
-        self.evaluate_columns_portable();
-    }
-
-    /// The same loops compiled for AVX2: eight f32 (four f64 in the arccosine) per instruction
-    /// instead of four (two). Only the vector width changes: Rust never fuses a multiply and an
-    /// add unless asked (`mul_add`), and FMA is not enabled anyway, so every operation rounds
-    /// exactly as in the portable build and the results are bit-identical.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn evaluate_columns_avx2(&mut self) {
-        self.evaluate_columns_portable();
-    }
-
-    /// Sixteen f32 (eight f64) per instruction; bit-identical for the same reason.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn evaluate_columns_avx512(&mut self) {
-        self.evaluate_columns_portable();
+    widest_vectors! {
+        /// The reference's per-corner arithmetic, in its operation order, column by column.
+        fn evaluate_columns / evaluate_columns_avx512 / evaluate_columns_avx2 (&mut self)
+            => evaluate_columns_portable
     }
 
     #[inline(always)]
