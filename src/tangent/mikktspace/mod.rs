@@ -363,20 +363,19 @@ impl Context<'_> {
             {
                 end += 1;
             }
-            batch.compute(self, start..end);
+            batch.compute(self, flags, start..end);
             for class in start..end {
                 let corners = self.table.of(class);
+                let offset = self.table.offsets[class] as usize - first_slot;
                 // The flags all corners' triangles have, and those any of them has.
-                let (all, any) = corners.iter().fold((u8::MAX, 0u8), |(all, any), &c| {
-                    let flag = flags[c as usize / 3];
-                    (all & flag, any | flag)
-                });
+                let (all, any) = batch.flags[offset..offset + corners.len()]
+                    .iter()
+                    .fold((u8::MAX, 0u8), |(all, any), &flag| (all & flag, any | flag));
                 if any & GROUP_WITH_ANY != 0 {
                     piece.touched.push(class as u32);
                     continue;
                 }
                 let one_orientation = (all ^ any) & ORIENT_PRESERVING == 0;
-                let offset = self.table.offsets[class] as usize - first_slot;
                 if one_orientation
                     && self.try_one_group(
                         class,
@@ -442,12 +441,8 @@ impl Context<'_> {
         // whole blocks of eight (a few vector instructions) instead of looping over k.
         let mut arriving = [NONE; MAX];
         let mut leaving = [0u32; MAX];
-        for (j, &corner) in corners.iter().enumerate() {
-            let corner = corner as usize;
-            let base = corner - corner % 3;
-            let i = corner - base;
-            arriving[j] = self.corner_class[base + PREV[i]];
-            leaving[j] = self.corner_class[base + NEXT[i]];
+        for (j, &[arrives, leaves]) in batch.ends[offset..offset + k].iter().enumerate() {
+            (arriving[j], leaving[j]) = (arrives, leaves);
         }
         let blocks = k.div_ceil(8);
         // Pair each leaving edge with the arriving edge from the same vertex; more than one
@@ -733,7 +728,7 @@ impl Context<'_> {
         for (k, &class) in touched.iter().enumerate() {
             let class = class as usize;
             let labels = &labels[link_offsets[k]..link_offsets[k + 1]];
-            batch.compute(self, class..class + 1);
+            batch.compute(self, flags, class..class + 1);
             self.evaluate(class, flags, labels, &batch, 0, &mut scratch.eval);
             self.finish_class(class, &scratch.eval.raw, degenerate, repairs, put);
         }
@@ -875,6 +870,11 @@ struct Batch {
     t: [Vec<f32>; 3],
     cos: Vec<f32>,
     angle: Vec<f32>,
+    /// The other ends of the edges arriving at and leaving each corner (their classes), and
+    /// its triangle's flags: what the one-group shortcut reads, gathered while the triangle is
+    /// at hand.
+    ends: Vec<[u32; 2]>,
+    flags: Vec<u8>,
 }
 
 /// Above this many corners a batch is closed (a vertex with more corners gets one of its own).
@@ -906,7 +906,7 @@ impl Batch {
     }
 
     /// Gathers and computes the corners of `classes`, in table order.
-    fn compute(&mut self, context: &Context<'_>, classes: std::ops::Range<usize>) {
+    fn compute(&mut self, context: &Context<'_>, flags: &[u8], classes: std::ops::Range<usize>) {
         let table = context.table;
         let mesh = context.mesh;
         let slots = table.offsets[classes.start] as usize..table.offsets[classes.end] as usize;
@@ -918,6 +918,10 @@ impl Batch {
             if column.len() < len {
                 column.resize(len, 0.0);
             }
+        }
+        if self.ends.len() < len {
+            self.ends.resize(len, [0; 2]);
+            self.flags.resize(len, 0);
         }
         // Every column sliced to exactly `len` up front, and the corners visited as one slice,
         // so that the fifteen stores per corner need no bounds checks (indexing the vectors
@@ -941,12 +945,16 @@ impl Batch {
         let [ftx, fty, ftz] = self.frame_t.each_mut().map(|c| &mut c[..len]);
         let [nex, ney, nez] = self.to_next.each_mut().map(|c| &mut c[..len]);
         let [pex, pey, pez] = self.to_prev.each_mut().map(|c| &mut c[..len]);
+        let (ends, corner_flags) = (&mut self.ends[..len], &mut self.flags[..len]);
         for at in 0..len {
             let corner = corners[at] as usize;
             let triangle = corner / 3;
             // One bounds check for the triangle's three indices; `i < 3` needs none.
             let vertices = &mesh.indices[3 * triangle..3 * triangle + 3];
+            let classes = &context.corner_class[3 * triangle..3 * triangle + 3];
             let i = corner % 3;
+            ends[at] = [classes[PREV[i]], classes[NEXT[i]]];
+            corner_flags[at] = flags[triangle];
             let here = mesh.positions[vertices[i] as usize];
             let next = mesh.positions[vertices[NEXT[i]] as usize];
             let prev = mesh.positions[vertices[PREV[i]] as usize];
