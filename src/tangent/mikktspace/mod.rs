@@ -509,10 +509,16 @@ impl Context<'_> {
         let raw = encode(normalize_or_zero(sum), orientation != 0);
         let normal = column(&batch.normal, offset);
         if fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, n)) {
-            // Valid: every corner gets the same finished tangent.
+            // Valid: every corner gets the same finished tangent, which a corner whose vertex is
+            // the previous corner's has just been given.
             let tangent = fallback::with_w_convention(raw, self.flip_w);
+            let mut previous = NONE;
             for &corner in corners {
-                put(corner as usize, tangent);
+                let vertex = self.mesh.indices[corner as usize];
+                if vertex != previous {
+                    put(corner as usize, tangent);
+                    previous = vertex;
+                }
             }
         } else {
             for &corner in corners {
