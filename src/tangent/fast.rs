@@ -15,7 +15,7 @@ use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
 use super::triangles::{BATCH, TriangleColumns};
 use super::vectors::widest_vectors;
-use super::weld::{CornerTable, weld_mesh};
+use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
 
 #[derive(Clone, Copy, Default)]
@@ -217,17 +217,29 @@ pub(crate) fn generate(
             let check_normal = fallback::check_normal(normal);
             // [preserving, mirrored] sums of s and t.
             let mut sums = [[[0.0f32; 3]; 2]; 2];
+            // Bit s: some corner takes side s's tangent (see below).
+            let mut sides_used = 0u8;
+            let mut unsigned = false;
             for &corner in corners {
                 let f = &faces[corner as usize / 3];
                 if f.sign == 0.0 {
+                    unsigned = true;
                     continue;
                 }
                 let side = usize::from(f.sign < 0.0);
+                sides_used |= 1 << side;
                 let w = f.weights[corner as usize % 3];
                 sums[side][0] = add(sums[side][0], scale(f.s, w));
                 sums[side][1] = add(sums[side][1], scale(f.t, w));
             }
             let strongest = usize::from(dot(sums[1][0], sums[1][0]) > dot(sums[0][0], sums[0][0]));
+            if unsigned {
+                sides_used |= 1 << strongest;
+            }
+            // When every corner takes one tangent and it is valid, a corner whose vertex is the
+            // previous corner's has just been given it.
+            let one_side = sides_used.count_ones() <= 1;
+            let mut previous = NONE;
             // At most two tangents per vertex, one per side, each worked out once.
             let mut finished: [Option<([f32; 4], bool)>; 2] = [None; 2];
             for &corner in corners {
@@ -249,6 +261,13 @@ pub(crate) fn generate(
                     let t = encode(tangent, orientation_preserving);
                     (t, check_normal.is_some_and(|n| fallback::passes(&t, n)))
                 });
+                if one_side && valid {
+                    let vertex = mesh.indices[corner];
+                    if vertex == previous {
+                        continue;
+                    }
+                    previous = vertex;
+                }
                 put(
                     corner,
                     fallback::finish_corner(mesh, corner, t, valid, flip_w, repairs),
