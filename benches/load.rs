@@ -76,31 +76,23 @@ impl Phase {
         self.unexpected.extend(other.unexpected);
     }
 
+    /// Prints the phase's table row and returns its CSV line.
     fn row(&mut self, name: &str, offered: f64) -> String {
         self.accepted.sort();
         let ok = self.accepted.len();
-        let total = ok + self.shed + self.unexpected.len();
-        let line = format!(
-            "{name},{offered:.1},{total},{ok},{},{},{:.1},{:.2},{:.2},{:.2},{:.2}",
-            self.shed,
-            self.unexpected.len(),
-            ok as f64 / self.seconds,
-            ms(percentile(&self.accepted, 0.5)),
-            ms(percentile(&self.accepted, 0.9)),
-            ms(percentile(&self.accepted, 0.99)),
-            ms(percentile(&self.accepted, 1.0)),
-        );
+        let shed = self.shed;
+        let unexpected = self.unexpected.len();
+        let total = ok + shed + unexpected;
+        let goodput = ok as f64 / self.seconds;
+        let [p50, p90, p99, max] = [0.5, 0.9, 0.99, 1.0].map(|p| ms(percentile(&self.accepted, p)));
         println!(
-            "{name:>9} {offered:>9.1} {total:>8} {ok:>7} {:>6} {:>6} {:>9.1} {:>8.2} {:>8.2} {:>8.2} {:>8.2}",
-            self.shed,
-            self.unexpected.len(),
-            ok as f64 / self.seconds,
-            ms(percentile(&self.accepted, 0.5)),
-            ms(percentile(&self.accepted, 0.9)),
-            ms(percentile(&self.accepted, 0.99)),
-            ms(percentile(&self.accepted, 1.0)),
+            "{name:>9} {offered:>9.1} {total:>8} {ok:>7} {shed:>6} {unexpected:>6} {goodput:>9.1} \
+             {p50:>8.2} {p90:>8.2} {p99:>8.2} {max:>8.2}"
         );
-        line
+        format!(
+            "{name},{offered:.1},{total},{ok},{shed},{unexpected},{goodput:.1},{p50:.2},{p90:.2},\
+             {p99:.2},{max:.2}"
+        )
     }
 }
 

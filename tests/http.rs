@@ -18,6 +18,27 @@ async fn server(config: ServerConfig) -> (Running, String) {
     (running, base)
 }
 
+/// `POST /v1/tangents` with `body` and no other header.
+async fn post_tangents(base: &str, body: impl Into<reqwest::Body>) -> reqwest::Response {
+    client()
+        .post(format!("{base}/v1/tangents"))
+        .body(body)
+        .send()
+        .await
+        .unwrap()
+}
+
+/// A server that takes one upload at a time and gives up on a silent client after
+/// `read_timeout`.
+async fn one_upload_slot_server(read_timeout: Duration) -> (Running, String) {
+    server(ServerConfig {
+        in_flight: 1,
+        read_timeout,
+        ..ServerConfig::local()
+    })
+    .await
+}
+
 fn client() -> reqwest::Client {
     reqwest::Client::builder().build().unwrap()
 }
@@ -371,12 +392,7 @@ async fn a_full_queue_sheds_load_and_recovers() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let config = ServerConfig {
-        in_flight: 1,
-        read_timeout: Duration::from_millis(800),
-        ..ServerConfig::local()
-    };
-    let (running, base) = server(config).await;
+    let (running, base) = one_upload_slot_server(Duration::from_millis(800)).await;
     // A trickling client holds the one upload slot.
     let mut slow = tokio::net::TcpStream::connect(running.addr).await.unwrap();
     slow.write_all(b"POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/obj\r\nContent-Length: 1000\r\n\r\nv 0 0 0\n")
@@ -384,12 +400,7 @@ async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
         .unwrap();
     tokio::time::sleep(Duration::from_millis(100)).await;
     // A whole body sent at once: read and thrown away, so the client gets its 503, not a reset.
-    let refused = client()
-        .post(format!("{base}/v1/tangents"))
-        .body(grid(100))
-        .send()
-        .await
-        .unwrap();
+    let refused = post_tangents(&base, grid(100)).await;
     assert_eq!(refused.headers()["retry-after"], "1");
     problem(refused, 503, "overloaded").await;
     // A client waiting for 100 Continue is answered without being asked for its body.
@@ -408,12 +419,7 @@ async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
     let mut answer = Vec::new();
     let _ = tokio::time::timeout(Duration::from_secs(5), slow.read_to_end(&mut answer)).await;
     assert!(String::from_utf8_lossy(&answer).starts_with("HTTP/1.1 408"));
-    let response = client()
-        .post(format!("{base}/v1/tangents"))
-        .body(grid(4))
-        .send()
-        .await
-        .unwrap();
+    let response = post_tangents(&base, grid(4)).await;
     assert_eq!(response.status(), 200);
     running.shutdown().await.unwrap();
 }
@@ -421,12 +427,7 @@ async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_that_stops_reading_is_cut_off_and_frees_its_slot() {
     use tokio::io::AsyncWriteExt;
-    let config = ServerConfig {
-        in_flight: 1,
-        read_timeout: Duration::from_millis(500),
-        ..ServerConfig::local()
-    };
-    let (running, base) = server(config).await;
+    let (running, base) = one_upload_slot_server(Duration::from_millis(500)).await;
     // A tiny receive window, and nothing read: the server's writes of a 12 MB answer stall.
     let socket = tokio::net::TcpSocket::new_v4().unwrap();
     socket.set_recv_buffer_size(4096).unwrap();
@@ -500,12 +501,7 @@ async fn slow_work_times_out_with_504() {
         ..ServerConfig::local()
     };
     let (running, base) = server(config).await;
-    let response = client()
-        .post(format!("{base}/v1/tangents"))
-        .body(grid(300))
-        .send()
-        .await
-        .unwrap();
+    let response = post_tangents(&base, grid(300)).await;
     problem(response, 504, "timeout").await;
     running.shutdown().await.unwrap();
 }
@@ -525,12 +521,7 @@ async fn a_trickled_upload_times_out_without_holding_a_worker() {
         .await
         .unwrap();
     // While it trickles, the single worker still serves others.
-    let response = client()
-        .post(format!("{base}/v1/tangents"))
-        .body(grid(2))
-        .send()
-        .await
-        .unwrap();
+    let response = post_tangents(&base, grid(2)).await;
     assert_eq!(response.status(), 200);
     let mut answer = Vec::new();
     let _ = tokio::time::timeout(Duration::from_secs(5), slow.read_to_end(&mut answer)).await;
@@ -546,12 +537,7 @@ async fn shutdown_drains_an_in_flight_request() {
     let body = grid(400);
     let request = tokio::spawn(async move {
         // The client (and its keep-alive connection) ends with this task.
-        let response = client()
-            .post(format!("{base}/v1/tangents"))
-            .body(body)
-            .send()
-            .await
-            .unwrap();
+        let response = post_tangents(&base, body).await;
         let status = response.status();
         (status, response.bytes().await.unwrap().len())
     });
@@ -679,12 +665,7 @@ async fn clients_that_vanish_leave_nothing_behind() {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     assert!(settled, "jobs still counted: {:?}", gauges(&base).await);
-    let response = client()
-        .post(format!("{base}/v1/tangents"))
-        .body(grid(4))
-        .send()
-        .await
-        .unwrap();
+    let response = post_tangents(&base, grid(4)).await;
     assert_eq!(response.status(), 200);
     running.shutdown().await.unwrap();
 }

@@ -4,7 +4,7 @@
 //! a mirror seam is split instead of averaging two opposite frames into nothing.
 
 use super::Weighting;
-use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTallies};
+use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck};
 use super::fallback::{self, Problem};
 use super::fill::filled;
 use super::math::{
@@ -13,7 +13,7 @@ use super::math::{
 };
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
-use super::triangles::{BATCH, TriangleColumns};
+use super::triangles::{BATCH, TriangleColumns, per_triangle_pass};
 use super::vectors::widest_vectors;
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
@@ -176,30 +176,15 @@ pub(crate) fn generate(
 ) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
     let mut faces = filled(triangle_count, parallel, Face::default);
-    // The diagnostics' triangle checks ride along: they read the same corners.
-    const CHUNK: usize = 16384;
-    let classify = |(chunk, faces): (usize, &mut [Face])| {
-        let mut tallies = TriangleTallies::default();
-        let mut triangles = TriangleColumns::default();
-        let mut columns = FaceColumns::default();
-        for (b, faces) in faces.chunks_mut(BATCH).enumerate() {
-            triangles.gather(mesh, chunk * CHUNK + b * BATCH, faces.len());
-            columns.compute(&mut triangles, check, weighting, faces);
-            triangles.tally(mesh, check, &mut tallies);
-        }
-        tallies
-    };
-    let triangles = if parallel {
-        faces
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .map(classify)
-            .collect::<Vec<TriangleTallies>>()
-            .into_iter()
-            .sum()
-    } else {
-        faces.chunks_mut(CHUNK).enumerate().map(classify).sum()
-    };
+    let triangles = per_triangle_pass(
+        mesh,
+        check,
+        &mut faces[..],
+        parallel,
+        |columns: &mut FaceColumns, triangles, faces| {
+            columns.compute(triangles, check, weighting, faces);
+        },
+    );
     diagnostics.set_triangles(triangles);
     let weld = weld_mesh(mesh, parallel);
     let corner_class: Vec<u32> = mesh

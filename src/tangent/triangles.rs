@@ -97,3 +97,75 @@ impl TriangleColumns {
         }
     }
 }
+
+/// What a per-triangle pass writes: one slice of per-triangle items, or two side by side.
+pub(crate) trait PerTriangle: Send + Sized {
+    fn len(&self) -> usize;
+    fn split_at(self, mid: usize) -> (Self, Self);
+}
+
+impl<T: Send> PerTriangle for &mut [T] {
+    fn len(&self) -> usize {
+        <[T]>::len(self)
+    }
+
+    fn split_at(self, mid: usize) -> (Self, Self) {
+        self.split_at_mut(mid)
+    }
+}
+
+impl<A: Send, B: Send> PerTriangle for (&mut [A], &mut [B]) {
+    fn len(&self) -> usize {
+        self.0.len().min(self.1.len())
+    }
+
+    fn split_at(self, mid: usize) -> (Self, Self) {
+        let (a, rest_a) = self.0.split_at_mut(mid);
+        let (b, rest_b) = self.1.split_at_mut(mid);
+        ((a, b), (rest_a, rest_b))
+    }
+}
+
+/// Runs a per-triangle pass over every triangle: `batch` fills `out`'s items for each gathered
+/// batch of triangles, given scratch `S` of its own per run of triangles, and the diagnostics'
+/// triangle checks are tallied alongside. Runs of triangles go to the thread pool when
+/// `parallel`; the tallies are the same either way.
+pub(crate) fn per_triangle_pass<O: PerTriangle, S: Default>(
+    mesh: &Mesh<'_>,
+    check: &TriangleCheck<'_>,
+    out: O,
+    parallel: bool,
+    batch: impl Fn(&mut S, &mut TriangleColumns, O) + Sync,
+) -> TriangleTallies {
+    const RUN: usize = 16384;
+    let mut runs = Vec::with_capacity(out.len() / RUN + 1);
+    let (mut first, mut rest) = (0, out);
+    while rest.len() > RUN {
+        let (run, later) = rest.split_at(RUN);
+        runs.push((first, run));
+        (first, rest) = (first + RUN, later);
+    }
+    runs.push((first, rest));
+    let run_pass = |(first, mut out): (usize, O)| {
+        let mut tallies = TriangleTallies::default();
+        let mut triangles = TriangleColumns::default();
+        let mut scratch = S::default();
+        let mut start = first;
+        while out.len() > 0 {
+            let len = out.len().min(BATCH);
+            let (items, later) = out.split_at(len);
+            triangles.gather(mesh, start, len);
+            batch(&mut scratch, &mut triangles, items);
+            triangles.tally(mesh, check, &mut tallies);
+            (start, out) = (start + len, later);
+        }
+        tallies
+    };
+    if parallel {
+        use rayon::prelude::*;
+        let tallies: Vec<TriangleTallies> = runs.into_par_iter().map(run_pass).collect();
+        tallies.into_iter().sum()
+    } else {
+        runs.into_iter().map(run_pass).sum()
+    }
+}

@@ -479,6 +479,15 @@ impl CornerTable {
 mod tests {
     use super::*;
 
+    fn weld_positions_and_uvs(positions: &[[f32; 3]], uvs: &[[f32; 2]]) -> Weld {
+        let key = Key {
+            positions,
+            normals: None,
+            uvs: Some(uvs),
+        };
+        weld_vertices(&key, false)
+    }
+
     #[test]
     fn welds_equal_vertices_and_keeps_distinct_ones() {
         let positions = [
@@ -489,14 +498,7 @@ mod tests {
             [f32::NAN, 0.0, 0.0],
         ];
         let uvs = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]];
-        let weld = weld_vertices(
-            &Key {
-                positions: &positions,
-                normals: None,
-                uvs: Some(&uvs),
-            },
-            false,
-        );
+        let weld = weld_positions_and_uvs(&positions, &uvs);
         assert_eq!(weld.class_of_vertex, vec![0, 0, 1, 2, 3]);
         assert_eq!(weld.class_count, 4);
     }
@@ -505,14 +507,7 @@ mod tests {
     fn texture_coordinates_separate_vertices() {
         let positions = [[0.0, 0.0, 0.0]; 3];
         let uvs = [[0.0, 0.0], [0.5, 0.0], [0.0, 0.0]];
-        let weld = weld_vertices(
-            &Key {
-                positions: &positions,
-                normals: None,
-                uvs: Some(&uvs),
-            },
-            false,
-        );
+        let weld = weld_positions_and_uvs(&positions, &uvs);
         assert_eq!(weld.class_of_vertex, vec![0, 1, 0]);
     }
 

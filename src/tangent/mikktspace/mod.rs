@@ -33,7 +33,7 @@
 //!   as `bevy_mikktspace`'s `corrected-edge-sorting` feature does.
 
 use super::acos::acos_slice;
-use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck, TriangleTallies};
+use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck};
 use super::fallback::{self, Problem};
 use super::fill::filled;
 use super::math::{
@@ -42,7 +42,7 @@ use super::math::{
 };
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
-use super::triangles::{BATCH, TriangleColumns};
+use super::triangles::{BATCH, TriangleColumns, per_triangle_pass};
 use super::vectors::widest_vectors;
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
@@ -76,41 +76,15 @@ pub(crate) fn generate(
 
     let mut frames = filled(triangle_count, parallel, Frame::default);
     let mut flags = vec![0u8; triangle_count];
-    // The diagnostics' triangle checks ride along: they read the same corners.
-    const CHUNK: usize = 16384;
-    let classify = |(chunk, (frames, flags)): (usize, (&mut [Frame], &mut [u8]))| {
-        let mut tallies = TriangleTallies::default();
-        let mut triangles = TriangleColumns::default();
-        let mut columns = FrameColumns::default();
-        let first = chunk * CHUNK;
-        for (b, (frames, flags)) in frames
-            .chunks_mut(BATCH)
-            .zip(flags.chunks_mut(BATCH))
-            .enumerate()
-        {
-            triangles.gather(mesh, first + b * BATCH, frames.len());
-            columns.compute(&mut triangles, check, frames, flags);
-            triangles.tally(mesh, check, &mut tallies);
-        }
-        tallies
-    };
-    let triangles = if parallel {
-        frames
-            .par_chunks_mut(CHUNK)
-            .zip(flags.par_chunks_mut(CHUNK))
-            .enumerate()
-            .map(classify)
-            .collect::<Vec<TriangleTallies>>()
-            .into_iter()
-            .sum()
-    } else {
-        frames
-            .chunks_mut(CHUNK)
-            .zip(flags.chunks_mut(CHUNK))
-            .enumerate()
-            .map(classify)
-            .sum()
-    };
+    let triangles = per_triangle_pass(
+        mesh,
+        check,
+        (&mut frames[..], &mut flags[..]),
+        parallel,
+        |columns: &mut FrameColumns, triangles, (frames, flags)| {
+            columns.compute(triangles, check, frames, flags);
+        },
+    );
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
