@@ -87,7 +87,7 @@ fn acos(x: f32) -> f32 {
 
 /// `out[i] = acos(x[i])` for every `i`, in two passes: a vectorizable estimate, then libm for the
 /// few uncertain lanes. Always inlined, so that it is compiled with the target features of its
-/// caller (see `Batch::evaluate_columns`).
+/// caller (the corner loop of the MikkTSpace triangle pass).
 #[inline(always)]
 pub(crate) fn acos_slice(x: &[f32], out: &mut [f32]) {
     for (o, &x) in out.iter_mut().zip(x) {

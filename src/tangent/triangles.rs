@@ -55,6 +55,18 @@ impl TriangleColumns {
         }
     }
 
+    /// The normals of the gathered triangles' corners, as `n[corner][axis][k]`.
+    #[inline(always)]
+    pub fn gather_normals(&self, mesh: &Mesh<'_>, n: &mut [[[f32; BATCH]; 3]; 3]) {
+        for (k, triangle) in (self.start..self.start + self.len).enumerate() {
+            for (corner, &v) in mesh.triangle(triangle).iter().enumerate() {
+                let normal = mesh.normals[v];
+                (n[corner][0][k], n[corner][1][k], n[corner][2][k]) =
+                    (normal[0], normal[1], normal[2]);
+            }
+        }
+    }
+
     /// Triangle `k` of the batch: its positions and texture coordinates (zeros without UVs).
     #[inline(always)]
     pub fn corners(&self, k: usize) -> ([[f32; 3]; 3], [[f32; 2]; 3]) {

@@ -74,15 +74,15 @@ pub(crate) fn generate(
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh, parallel);
 
-    let mut frames = filled(triangle_count, parallel, Frame::default);
+    let mut contributions = filled(triangle_count, parallel, <[Contribution; 3]>::default);
     let mut flags = vec![0u8; triangle_count];
     let triangles = per_triangle_pass(
         mesh,
         check,
-        (&mut frames[..], &mut flags[..]),
+        (&mut contributions[..], &mut flags[..]),
         parallel,
-        |columns: &mut FrameColumns, triangles, (frames, flags)| {
-            columns.compute(triangles, check, frames, flags);
+        |columns: &mut Box<FrameColumns>, triangles, (contributions, flags)| {
+            columns.compute(mesh, triangles, check, contributions, flags);
         },
     );
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
@@ -108,7 +108,7 @@ pub(crate) fn generate(
     let context = Context {
         mesh,
         corner_class: &corner_class,
-        frames: &frames,
+        contributions: &contributions,
         table: &table,
         flip_w,
     };
@@ -173,12 +173,33 @@ struct Piece {
     touched: Vec<u32>,
 }
 
-/// Frames and flags of a batch of triangles, in columns until they are copied out (see
-/// [`super::triangles`]).
+/// A corner's share of its vertex's tangent, computed in the triangle pass (every input it needs
+/// is at hand there) and read back when its vertex is grouped. The normal used is the corner's
+/// own; the welded vertex's may differ from it only in the sign of a zero component, which
+/// changes no bit of the sums, angles and comparisons made from these values.
+#[derive(Clone, Copy, Default)]
+struct Contribution {
+    /// The triangle's dP/du projected into the normal's plane, normalized.
+    s: [f32; 3],
+    /// Its dP/dv projected, not normalized (only the sub-group test needs it).
+    t: [f32; 3],
+    /// The corner's angle in the normal's plane: the weight.
+    angle: f32,
+}
+
+/// Frames, flags and corner contributions of a batch of triangles, in columns until they are
+/// copied out (see [`super::triangles`]).
 struct FrameColumns {
     s: [[f32; BATCH]; 3],
     t: [[f32; BATCH]; 3],
     flags: [u8; BATCH],
+    /// `normal[corner][axis][k]`, and so on: per corner of the batch's triangle `k`.
+    normal: [[[f32; BATCH]; 3]; 3],
+    corner_s: [[[f32; BATCH]; 3]; 3],
+    corner_t: [[[f32; BATCH]; 3]; 3],
+    /// Cosine and angle of corner `corner` of triangle `k` at `corner * BATCH + k`.
+    cos: [f32; 3 * BATCH],
+    angle: [f32; 3 * BATCH],
 }
 
 impl Default for FrameColumns {
@@ -187,19 +208,26 @@ impl Default for FrameColumns {
             s: [[0.0; BATCH]; 3],
             t: [[0.0; BATCH]; 3],
             flags: [0; BATCH],
+            normal: [[[0.0; BATCH]; 3]; 3],
+            corner_s: [[[0.0; BATCH]; 3]; 3],
+            corner_t: [[[0.0; BATCH]; 3]; 3],
+            cos: [0.0; 3 * BATCH],
+            angle: [0.0; 3 * BATCH],
         }
     }
 }
 
 impl FrameColumns {
     widest_vectors! {
-        /// Frames, flags and check events of the gathered `triangles`; the frames and flags go
-        /// to `frames` and `flags` (one per triangle of the batch).
+        /// Frames, flags, corner contributions and check events of the gathered `triangles`;
+        /// the contributions and flags go to `contributions` and `flags` (one per triangle of
+        /// the batch).
         fn compute / compute_avx512 / compute_avx2 (
             &mut self,
+            mesh: &Mesh<'_>,
             triangles: &mut TriangleColumns,
             check: &TriangleCheck<'_>,
-            frames: &mut [Frame],
+            contributions: &mut [[Contribution; 3]],
             flags: &mut [u8],
         ) => compute_portable
     }
@@ -207,11 +235,13 @@ impl FrameColumns {
     #[inline(always)]
     fn compute_portable(
         &mut self,
+        mesh: &Mesh<'_>,
         triangles: &mut TriangleColumns,
         check: &TriangleCheck<'_>,
-        frames: &mut [Frame],
+        contributions: &mut [[Contribution; 3]],
         flags: &mut [u8],
     ) {
+        triangles.gather_normals(mesh, &mut self.normal);
         let [sx, sy, sz] = &mut self.s;
         let [tx, ty, tz] = &mut self.t;
         for k in 0..BATCH {
@@ -221,18 +251,51 @@ impl FrameColumns {
             (tx[k], ty[k], tz[k]) = (frame.t[0], frame.t[1], frame.t[2]);
             self.flags[k] = flag;
         }
+        self.corner_columns::<0>(triangles);
+        self.corner_columns::<1>(triangles);
+        self.corner_columns::<2>(triangles);
+        acos_slice(&self.cos, &mut self.angle);
         triangles.check(check);
-        for (k, (frame, flag)) in frames
+        for (k, (out, flag)) in contributions
             .iter_mut()
             .zip(flags.iter_mut())
             .enumerate()
             .take(BATCH)
         {
-            *frame = Frame {
-                s: [sx[k], sy[k], sz[k]],
-                t: [tx[k], ty[k], tz[k]],
-            };
+            for (corner, out) in out.iter_mut().enumerate() {
+                let [csx, csy, csz] = &self.corner_s[corner];
+                let [ctx, cty, ctz] = &self.corner_t[corner];
+                *out = Contribution {
+                    s: [csx[k], csy[k], csz[k]],
+                    t: [ctx[k], cty[k], ctz[k]],
+                    angle: self.angle[corner * BATCH + k],
+                };
+            }
             *flag = self.flags[k];
+        }
+    }
+
+    /// The reference's per-corner arithmetic, in its operation order, for corner `CORNER` of
+    /// every triangle of the batch (a constant, so that the loop indexes no array by a variable).
+    #[inline(always)]
+    fn corner_columns<const CORNER: usize>(&mut self, triangles: &TriangleColumns) {
+        let [sx, sy, sz] = &self.s;
+        let [tx, ty, tz] = &self.t;
+        let [nx, ny, nz] = &self.normal[CORNER];
+        let [csx, csy, csz] = &mut self.corner_s[CORNER];
+        let [ctx, cty, ctz] = &mut self.corner_t[CORNER];
+        let cos = &mut self.cos[CORNER * BATCH..(CORNER + 1) * BATCH];
+        for k in 0..BATCH {
+            let (p, _) = triangles.corners(k);
+            let normal = [nx[k], ny[k], nz[k]];
+            let s = normalize_or_zero_branchless(reject([sx[k], sy[k], sz[k]], normal));
+            let t = reject([tx[k], ty[k], tz[k]], normal);
+            let here = p[CORNER];
+            let v1 = normalize_or_zero_branchless(reject(sub(p[NEXT[CORNER]], here), normal));
+            let v2 = normalize_or_zero_branchless(reject(sub(p[PREV[CORNER]], here), normal));
+            cos[k] = dot(v1, v2).clamp(-1.0, 1.0);
+            (csx[k], csy[k], csz[k]) = (s[0], s[1], s[2]);
+            (ctx[k], cty[k], ctz[k]) = (t[0], t[1], t[2]);
         }
     }
 }
@@ -285,7 +348,7 @@ fn triangle_frame(p: &[[f32; 3]; 3], tx: &[[f32; 2]; 3]) -> (Frame, u8) {
 struct Context<'a> {
     mesh: &'a Mesh<'a>,
     corner_class: &'a [u32],
-    frames: &'a [Frame],
+    contributions: &'a [[Contribution; 3]],
     table: &'a CornerTable,
     flip_w: bool,
 }
@@ -312,6 +375,11 @@ struct HalfEdge {
 }
 
 impl Context<'_> {
+    #[inline]
+    fn contribution(&self, corner: usize) -> &Contribution {
+        &self.contributions[corner / 3][corner % 3]
+    }
+
     /// Groups and evaluates the vertices `classes`, except those touching "group with anything"
     /// triangles, which are handed back for the sequential pass.
     fn process_classes<P: FnMut(usize, [f32; 4])>(
@@ -326,23 +394,25 @@ impl Context<'_> {
             repairs: Vec::new(),
             touched: Vec::new(),
         };
-        let mut batch = Batch::default();
+        let mut run = Run::default();
         let mut start = classes.start;
         while start < classes.end {
-            // A run of vertices with about BATCH_CORNERS corners between them.
+            // A run of vertices with about RUN_CORNERS corners between them.
             let first_slot = self.table.offsets[start] as usize;
             let mut end = start + 1;
             while end < classes.end
-                && self.table.offsets[end + 1] as usize - first_slot <= BATCH_CORNERS
+                && self.table.offsets[end + 1] as usize - first_slot <= RUN_CORNERS
             {
                 end += 1;
             }
-            batch.compute(self, flags, start..end);
+            let slots = first_slot..self.table.offsets[end] as usize;
+            run.gather(self, flags, &self.table.corners[slots]);
             for class in start..end {
                 let corners = self.table.of(class);
                 let offset = self.table.offsets[class] as usize - first_slot;
+                let slots = offset..offset + corners.len();
                 // The flags all corners' triangles have, and those any of them has.
-                let (all, any) = batch.flags[offset..offset + corners.len()]
+                let (all, any) = run.flags[slots.clone()]
                     .iter()
                     .fold((u8::MAX, 0u8), |(all, any), &flag| (all & flag, any | flag));
                 if any & GROUP_WITH_ANY != 0 {
@@ -354,8 +424,8 @@ impl Context<'_> {
                     && self.try_one_group(
                         class,
                         any & ORIENT_PRESERVING,
-                        &batch,
-                        offset,
+                        &run.ends[slots.clone()],
+                        &run.contributions[slots],
                         degenerate,
                         &mut piece.repairs,
                         put,
@@ -365,14 +435,7 @@ impl Context<'_> {
                 }
                 self.pair_edges(class, &mut scratch);
                 label_components(corners, flags, &mut scratch);
-                self.evaluate(
-                    class,
-                    flags,
-                    &scratch.labels,
-                    &batch,
-                    offset,
-                    &mut scratch.eval,
-                );
+                self.evaluate(class, flags, &scratch.labels, &mut scratch.eval);
                 self.finish_class(
                     class,
                     &scratch.eval.raw,
@@ -398,8 +461,8 @@ impl Context<'_> {
         &self,
         class: usize,
         orientation: u8,
-        batch: &Batch,
-        offset: usize,
+        ends: &[[u32; 2]],
+        contributions: &[Contribution],
         degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
@@ -415,7 +478,7 @@ impl Context<'_> {
         // whole blocks of eight (a few vector instructions) instead of looping over k.
         let mut arriving = [NONE; MAX];
         let mut leaving = [0u32; MAX];
-        for (j, &[arrives, leaves]) in batch.ends[offset..offset + k].iter().enumerate() {
+        for (j, &[arrives, leaves]) in ends.iter().enumerate() {
             (arriving[j], leaving[j]) = (arrives, leaves);
         }
         let blocks = k.div_ceil(8);
@@ -463,25 +526,21 @@ impl Context<'_> {
         }
 
         // One sub-group unless two frames can be opposite (see `evaluate_group`).
-        let slots = offset..offset + k;
-        let column = |c: &[Vec<f32>; 3], j: usize| [c[0][j], c[1][j], c[2][j]];
-        let (rs, rt) = (column(&batch.s, offset), column(&batch.t, offset));
+        let (rs, rt) = (contributions[0].s, contributions[0].t);
         let rt2 = dot(rt, rt);
-        // The test and the sum in one pass over the columns; the sum is wasted in the rare
-        // vertex that fails.
+        // The test and the sum in one pass; the sum is wasted in the rare vertex that fails.
         let mut single = true;
         let mut sum = [0.0f32; 3];
-        for j in slots {
-            let (s, t) = (column(&batch.s, j), column(&batch.t, j));
+        for &Contribution { s, t, angle } in contributions {
             let d = dot(t, rt);
             single &= dot(s, rs) > 0.01 && d > 0.0 && d * d > 1e-4 * (dot(t, t) * rt2);
-            sum = add(sum, scale(s, batch.angle[j]));
+            sum = add(sum, scale(s, angle));
         }
         if !single {
             return false;
         }
         let raw = encode(normalize_or_zero(sum), orientation != 0);
-        let normal = column(&batch.normal, offset);
+        let normal = self.mesh.normals[self.mesh.indices[corners[0] as usize] as usize];
         if fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, n)) {
             // Valid: every corner gets the same finished tangent, which a corner whose vertex is
             // the previous corner's has just been given.
@@ -650,7 +709,6 @@ impl Context<'_> {
             return;
         }
         let mut scratch = Scratch::default();
-        let mut batch = Batch::default();
         // Links and labels of every touched vertex, laid out one vertex after another.
         let mut link_offsets = Vec::with_capacity(touched.len() + 1);
         let mut links: Vec<[u32; 2]> = Vec::new();
@@ -708,32 +766,29 @@ impl Context<'_> {
         for (k, &class) in touched.iter().enumerate() {
             let class = class as usize;
             let labels = &labels[link_offsets[k]..link_offsets[k + 1]];
-            batch.compute(self, flags, class..class + 1);
-            self.evaluate(class, flags, labels, &batch, 0, &mut scratch.eval);
+            self.evaluate(class, flags, labels, &mut scratch.eval);
             self.finish_class(class, &scratch.eval.raw, degenerate, repairs, put);
         }
     }
 
     /// Computes the raw tangent of every corner around `class` into `eval.raw`, from its group
     /// label (`NONE`: no group, the corner stays unassigned).
-    /// The members of the vertex start at `offset` in `batch`.
-    fn evaluate(
-        &self,
-        class: usize,
-        flags: &[u8],
-        labels: &[u32],
-        batch: &Batch,
-        offset: usize,
-        eval: &mut EvalScratch,
-    ) {
+    fn evaluate(&self, class: usize, flags: &[u8], labels: &[u32], eval: &mut EvalScratch) {
         let corners = self.table.of(class);
         eval.raw.clear();
         eval.raw.resize(corners.len(), UNASSIGNED);
-        // Per-corner contributions, computed for the whole batch beforehand.
         eval.members.clear();
-        for (j, &corner) in corners.iter().enumerate() {
+        for &corner in corners {
             let any = flags[corner as usize / 3] & GROUP_WITH_ANY != 0;
-            eval.members.push(batch.member(offset + j, any));
+            eval.members.push(if any {
+                Member {
+                    any,
+                    ..Member::default()
+                }
+            } else {
+                let &Contribution { s, t, angle } = self.contribution(corner as usize);
+                Member { s, t, angle, any }
+            });
         }
 
         // Corners in group order: by label, then ascending (which is ascending triangle order,
@@ -834,166 +889,39 @@ struct Member {
     any: bool,
 }
 
-/// Corner contributions for a run of consecutive vertices, computed together: the inputs are
-/// gathered into columns, so that the arithmetic (three projections, three normalizations and
-/// an arccosine per corner) runs as one vectorizable loop instead of corner by corner.
+/// What the one-group shortcut reads of each corner of a run of vertices, gathered in table
+/// order before any of them is grouped: the reads are scattered over the mesh, and in one tight
+/// loop they overlap, where between the branches of the grouping they would wait one by one.
 #[derive(Default)]
-struct Batch {
-    len: usize,
-    normal: [Vec<f32>; 3],
-    frame_s: [Vec<f32>; 3],
-    frame_t: [Vec<f32>; 3],
-    /// Edges from the corner to the next and to the previous corner of its triangle.
-    to_next: [Vec<f32>; 3],
-    to_prev: [Vec<f32>; 3],
-    s: [Vec<f32>; 3],
-    t: [Vec<f32>; 3],
-    cos: Vec<f32>,
-    angle: Vec<f32>,
-    /// The other ends of the edges arriving at and leaving each corner (their classes), and
-    /// its triangle's flags: what the one-group shortcut reads, gathered while the triangle is
-    /// at hand.
+struct Run {
+    contributions: Vec<Contribution>,
+    /// The other ends (their classes) of the edges arriving at and leaving each corner.
     ends: Vec<[u32; 2]>,
+    /// Its triangle's flags.
     flags: Vec<u8>,
 }
 
-/// Above this many corners a batch is closed (a vertex with more corners gets one of its own).
-const BATCH_CORNERS: usize = 512;
+/// Above this many corners a run is closed (a vertex with more corners gets one of its own).
+const RUN_CORNERS: usize = 512;
 
-impl Batch {
-    fn columns_mut(&mut self) -> impl Iterator<Item = &mut Vec<f32>> {
-        let Batch {
-            normal,
-            frame_s,
-            frame_t,
-            to_next,
-            to_prev,
-            s,
-            t,
-            cos,
-            angle,
-            ..
-        } = self;
-        normal
-            .iter_mut()
-            .chain(frame_s)
-            .chain(frame_t)
-            .chain(to_next)
-            .chain(to_prev)
-            .chain(s)
-            .chain(t)
-            .chain([cos, angle])
-    }
-
-    /// Gathers and computes the corners of `classes`, in table order.
-    fn compute(&mut self, context: &Context<'_>, flags: &[u8], classes: std::ops::Range<usize>) {
-        let table = context.table;
-        let mesh = context.mesh;
-        let slots = table.offsets[classes.start] as usize..table.offsets[classes.end] as usize;
-        let len = slots.len();
-        self.len = len;
-        // Every column is written in full over `..len` below, so the columns only grow and are
-        // never cleared: zeroing them for every batch was a visible memset.
-        for column in self.columns_mut() {
-            if column.len() < len {
-                column.resize(len, 0.0);
-            }
-        }
-        if self.ends.len() < len {
+impl Run {
+    fn gather(&mut self, context: &Context<'_>, flags: &[u8], corners: &[u32]) {
+        let len = corners.len();
+        // Only grown, never cleared: every place up to `len` is written below.
+        if self.flags.len() < len {
+            self.contributions.resize(len, Contribution::default());
             self.ends.resize(len, [0; 2]);
             self.flags.resize(len, 0);
         }
-        // Every column sliced to exactly `len` up front, and the corners visited as one slice,
-        // so that the fifteen stores per corner need no bounds checks (indexing the vectors
-        // directly spent a third of the gather on them).
-        let corners = &table.corners[slots.clone()];
-        let len = corners.len();
-        let [nx, ny, nz] = self.normal.each_mut().map(|c| &mut c[..len]);
-        for class in classes {
-            let range = table.offsets[class] as usize - slots.start
-                ..table.offsets[class + 1] as usize - slots.start;
-            if range.is_empty() {
-                continue;
-            }
-            let first = corners[range.start];
-            let normal = mesh.normals[mesh.indices[first as usize] as usize];
-            nx[range.clone()].fill(normal[0]);
-            ny[range.clone()].fill(normal[1]);
-            nz[range].fill(normal[2]);
-        }
-        let [fsx, fsy, fsz] = self.frame_s.each_mut().map(|c| &mut c[..len]);
-        let [ftx, fty, ftz] = self.frame_t.each_mut().map(|c| &mut c[..len]);
-        let [nex, ney, nez] = self.to_next.each_mut().map(|c| &mut c[..len]);
-        let [pex, pey, pez] = self.to_prev.each_mut().map(|c| &mut c[..len]);
-        let (ends, corner_flags) = (&mut self.ends[..len], &mut self.flags[..len]);
-        for at in 0..len {
-            let corner = corners[at] as usize;
-            let triangle = corner / 3;
-            // One bounds check for the triangle's three indices; `i < 3` needs none.
-            let vertices = &mesh.indices[3 * triangle..3 * triangle + 3];
+        let contributions = &mut self.contributions[..len];
+        let ends = &mut self.ends[..len];
+        let corner_flags = &mut self.flags[..len];
+        for (at, &corner) in corners.iter().enumerate() {
+            let (triangle, i) = (corner as usize / 3, corner as usize % 3);
+            contributions[at] = context.contributions[triangle][i];
             let classes = &context.corner_class[3 * triangle..3 * triangle + 3];
-            let i = corner % 3;
             ends[at] = [classes[PREV[i]], classes[NEXT[i]]];
             corner_flags[at] = flags[triangle];
-            let here = mesh.positions[vertices[i] as usize];
-            let next = mesh.positions[vertices[NEXT[i]] as usize];
-            let prev = mesh.positions[vertices[PREV[i]] as usize];
-            let frame = &context.frames[triangle];
-            (fsx[at], fsy[at], fsz[at]) = (frame.s[0], frame.s[1], frame.s[2]);
-            (ftx[at], fty[at], ftz[at]) = (frame.t[0], frame.t[1], frame.t[2]);
-            (nex[at], ney[at], nez[at]) = (next[0] - here[0], next[1] - here[1], next[2] - here[2]);
-            (pex[at], pey[at], pez[at]) = (prev[0] - here[0], prev[1] - here[1], prev[2] - here[2]);
-        }
-        self.evaluate_columns();
-    }
-
-    widest_vectors! {
-        /// The reference's per-corner arithmetic, in its operation order, column by column.
-        fn evaluate_columns / evaluate_columns_avx512 / evaluate_columns_avx2 (&mut self)
-            => evaluate_columns_portable
-    }
-
-    #[inline(always)]
-    fn evaluate_columns_portable(&mut self) {
-        let len = self.len;
-        let n = self.normal.each_ref().map(|c| &c[..len]);
-        let fs = self.frame_s.each_ref().map(|c| &c[..len]);
-        let ft = self.frame_t.each_ref().map(|c| &c[..len]);
-        let e1 = self.to_next.each_ref().map(|c| &c[..len]);
-        let e2 = self.to_prev.each_ref().map(|c| &c[..len]);
-        let [sx, sy, sz] = &mut self.s;
-        let [tx, ty, tz] = &mut self.t;
-        let (sx, sy, sz) = (&mut sx[..len], &mut sy[..len], &mut sz[..len]);
-        let (tx, ty, tz) = (&mut tx[..len], &mut ty[..len], &mut tz[..len]);
-        let cos_column = &mut self.cos[..len];
-        for i in 0..len {
-            let normal = [n[0][i], n[1][i], n[2][i]];
-            let column = |c: [&[f32]; 3]| [c[0][i], c[1][i], c[2][i]];
-            let s = normalize_or_zero_branchless(reject(column(fs), normal));
-            let t = reject(column(ft), normal);
-            let v1 = normalize_or_zero_branchless(reject(column(e1), normal));
-            let v2 = normalize_or_zero_branchless(reject(column(e2), normal));
-            let cos = dot(v1, v2).clamp(-1.0, 1.0);
-            (sx[i], sy[i], sz[i]) = (s[0], s[1], s[2]);
-            (tx[i], ty[i], tz[i]) = (t[0], t[1], t[2]);
-            cos_column[i] = cos;
-        }
-        acos_slice(cos_column, &mut self.angle[..len]);
-    }
-
-    #[inline]
-    fn member(&self, slot: usize, any: bool) -> Member {
-        if any {
-            return Member {
-                any,
-                ..Member::default()
-            };
-        }
-        Member {
-            s: [self.s[0][slot], self.s[1][slot], self.s[2][slot]],
-            t: [self.t[0][slot], self.t[1][slot], self.t[2][slot]],
-            angle: self.angle[slot],
-            any,
         }
     }
 }
