@@ -173,18 +173,22 @@ struct Piece {
     touched: Vec<u32>,
 }
 
-/// A corner's share of its vertex's tangent, computed in the triangle pass (every input it needs
-/// is at hand there) and read back when its vertex is grouped. The normal used is the corner's
-/// own; the welded vertex's may differ from it only in the sign of a zero component, which
-/// changes no bit of the sums, angles and comparisons made from these values.
+/// What the one-group shortcut needs of a corner, computed in the triangle pass (every input it
+/// needs is at hand there) and read back when its vertex is grouped. Kept to 16 bytes: on a
+/// large mesh this array is most of the extra memory, and fresh memory costs a page fault per
+/// 4 KiB. The exact values behind it are recomputed for the rare vertex that takes the general
+/// path (see [`Context::exact_member`]).
+///
+/// The normal used is the corner's own; the welded vertex's may differ from it only in the sign
+/// of a zero component, which changes no bit of the sums, angles and comparisons made from it.
 #[derive(Clone, Copy, Default)]
 struct Contribution {
-    /// The triangle's dP/du projected into the normal's plane, normalized.
-    s: [f32; 3],
-    /// Its dP/dv projected, not normalized (only the sub-group test needs it).
-    t: [f32; 3],
-    /// The corner's angle in the normal's plane: the weight.
-    angle: f32,
+    /// The triangle's dP/du projected into the normal's plane and normalized, times the
+    /// corner's angle in that plane: the term the reference adds for this corner.
+    weighted_s: [f32; 3],
+    /// The direction of dP/dv projected, as `trunc(127 x)` of its unit vector (zero where it
+    /// has none): enough to tell that no two frames around a vertex can be opposite.
+    t_direction: [i8; 3],
 }
 
 /// Frames, flags and corner contributions of a batch of triangles, in columns until they are
@@ -196,6 +200,7 @@ struct FrameColumns {
     /// `normal[corner][axis][k]`, and so on: per corner of the batch's triangle `k`.
     normal: [[[f32; BATCH]; 3]; 3],
     corner_s: [[[f32; BATCH]; 3]; 3],
+    /// `127 t / |t|` (see [`Contribution::t_direction`]).
     corner_t: [[[f32; BATCH]; 3]; 3],
     /// Cosine and angle of corner `corner` of triangle `k` at `corner * BATCH + k`.
     cos: [f32; 3 * BATCH],
@@ -255,28 +260,36 @@ impl FrameColumns {
         self.corner_columns::<1>(triangles);
         self.corner_columns::<2>(triangles);
         acos_slice(&self.cos, &mut self.angle);
+        for corner in 0..3 {
+            let angle = &self.angle[corner * BATCH..(corner + 1) * BATCH];
+            for column in &mut self.corner_s[corner] {
+                for (x, &angle) in column.iter_mut().zip(angle) {
+                    *x *= angle;
+                }
+            }
+        }
         triangles.check(check);
+        let contribution = |corner: usize, k: usize| {
+            let [wx, wy, wz] = &self.corner_s[corner];
+            let [tx, ty, tz] = &self.corner_t[corner];
+            Contribution {
+                weighted_s: [wx[k], wy[k], wz[k]],
+                t_direction: [tx[k] as i8, ty[k] as i8, tz[k] as i8],
+            }
+        };
         for (k, (out, flag)) in contributions
             .iter_mut()
             .zip(flags.iter_mut())
             .enumerate()
             .take(BATCH)
         {
-            for (corner, out) in out.iter_mut().enumerate() {
-                let [csx, csy, csz] = &self.corner_s[corner];
-                let [ctx, cty, ctz] = &self.corner_t[corner];
-                *out = Contribution {
-                    s: [csx[k], csy[k], csz[k]],
-                    t: [ctx[k], cty[k], ctz[k]],
-                    angle: self.angle[corner * BATCH + k],
-                };
-            }
+            *out = [contribution(0, k), contribution(1, k), contribution(2, k)];
             *flag = self.flags[k];
         }
     }
 
-    /// The reference's per-corner arithmetic, in its operation order, for corner `CORNER` of
-    /// every triangle of the batch (a constant, so that the loop indexes no array by a variable).
+    /// [`corner_arithmetic`] for corner `CORNER` of every triangle of the batch (a constant, so
+    /// that the loop indexes no array by a variable).
     #[inline(always)]
     fn corner_columns<const CORNER: usize>(&mut self, triangles: &TriangleColumns) {
         let [sx, sy, sz] = &self.s;
@@ -287,17 +300,36 @@ impl FrameColumns {
         let cos = &mut self.cos[CORNER * BATCH..(CORNER + 1) * BATCH];
         for k in 0..BATCH {
             let (p, _) = triangles.corners(k);
-            let normal = [nx[k], ny[k], nz[k]];
-            let s = normalize_or_zero_branchless(reject([sx[k], sy[k], sz[k]], normal));
-            let t = reject([tx[k], ty[k], tz[k]], normal);
-            let here = p[CORNER];
-            let v1 = normalize_or_zero_branchless(reject(sub(p[NEXT[CORNER]], here), normal));
-            let v2 = normalize_or_zero_branchless(reject(sub(p[PREV[CORNER]], here), normal));
-            cos[k] = dot(v1, v2).clamp(-1.0, 1.0);
+            let frame = Frame {
+                s: [sx[k], sy[k], sz[k]],
+                t: [tx[k], ty[k], tz[k]],
+            };
+            let (s, t, c) = corner_arithmetic(&p, CORNER, &frame, [nx[k], ny[k], nz[k]]);
+            let t = scale(normalize_or_zero_branchless(t), 127.0);
+            cos[k] = c;
             (csx[k], csy[k], csz[k]) = (s[0], s[1], s[2]);
             (ctx[k], cty[k], ctz[k]) = (t[0], t[1], t[2]);
         }
     }
+}
+
+/// The reference's per-corner arithmetic, in its operation order: the triangle's frame projected
+/// into the plane of the corner's normal (`s` normalized, `t` not) and the cosine of the corner's
+/// angle in that plane. Both the batched triangle pass and [`Context::exact_member`] use it, so
+/// they agree bit for bit.
+#[inline(always)]
+fn corner_arithmetic(
+    p: &[[f32; 3]; 3],
+    corner: usize,
+    frame: &Frame,
+    normal: [f32; 3],
+) -> ([f32; 3], [f32; 3], f32) {
+    let s = normalize_or_zero_branchless(reject(frame.s, normal));
+    let t = reject(frame.t, normal);
+    let here = p[corner];
+    let v1 = normalize_or_zero_branchless(reject(sub(p[NEXT[corner]], here), normal));
+    let v2 = normalize_or_zero_branchless(reject(sub(p[PREV[corner]], here), normal));
+    (s, t, dot(v1, v2).clamp(-1.0, 1.0))
 }
 
 /// The reference's per-triangle set-up, in its operation order so results are bit-identical.
@@ -375,9 +407,21 @@ struct HalfEdge {
 }
 
 impl Context<'_> {
-    #[inline]
-    fn contribution(&self, corner: usize) -> &Contribution {
-        &self.contributions[corner / 3][corner % 3]
+    /// A corner's contribution with the values it was made from, computed again exactly as
+    /// the triangle pass did (the same functions, and the arccosine the batched one matches).
+    fn exact_member(&self, corner: usize) -> Member {
+        let triangle = self.mesh.triangle(corner / 3);
+        let p = triangle.map(|v| self.mesh.positions[v]);
+        let uv = triangle.map(|v| self.mesh.uv(v));
+        let (frame, _) = triangle_frame(&p, &uv);
+        let normal = self.mesh.normals[self.mesh.indices[corner] as usize];
+        let (s, t, cos) = corner_arithmetic(&p, corner % 3, &frame, normal);
+        Member {
+            s,
+            t,
+            angle: (cos as f64).acos() as f32,
+            any: false,
+        }
     }
 
     /// Groups and evaluates the vertices `classes`, except those touching "group with anything"
@@ -525,16 +569,24 @@ impl Context<'_> {
             return false;
         }
 
-        // One sub-group unless two frames can be opposite (see `evaluate_group`).
-        let (rs, rt) = (contributions[0].s, contributions[0].t);
-        let rt2 = dot(rt, rt);
+        // One sub-group unless two frames can be opposite (see `evaluate_group`): true if
+        // every frame lies within 89° of the first.
+        // Every `s` within ~89.4° of the first (a weighted `s` has its direction, or is zero
+        // and fails), and every `t` within ~88° (see `T_DIRECTIONS_CLOSE`).
+        let (rs, rt) = (contributions[0].weighted_s, contributions[0].t_direction);
+        let rs2 = dot(rs, rs);
         // The test and the sum in one pass; the sum is wasted in the rare vertex that fails.
         let mut single = true;
         let mut sum = [0.0f32; 3];
-        for &Contribution { s, t, angle } in contributions {
-            let d = dot(t, rt);
-            single &= dot(s, rs) > 0.01 && d > 0.0 && d * d > 1e-4 * (dot(t, t) * rt2);
-            sum = add(sum, scale(s, angle));
+        for &Contribution {
+            weighted_s,
+            t_direction,
+        } in contributions
+        {
+            let d = dot(weighted_s, rs);
+            single &= d > 0.0 && d * d > 1e-4 * (dot(weighted_s, weighted_s) * rs2);
+            single &= dot_i8(t_direction, rt) > T_DIRECTIONS_CLOSE;
+            sum = add(sum, weighted_s);
         }
         if !single {
             return false;
@@ -786,8 +838,7 @@ impl Context<'_> {
                     ..Member::default()
                 }
             } else {
-                let &Contribution { s, t, angle } = self.contribution(corner as usize);
-                Member { s, t, angle, any }
+                self.exact_member(corner as usize)
             });
         }
 
@@ -924,6 +975,20 @@ impl Run {
             corner_flags[at] = flags[triangle];
         }
     }
+}
+
+/// The least dot product of two [`Contribution::t_direction`]s whose unit vectors are sure to
+/// make a cosine above 0.01. Truncation moves each component less than 1, so the dot product of
+/// the scaled vectors less than `2 · 127 · √3 + 3 < 444` away from `127² cos`; above this bound
+/// `cos > (1024 − 444) / 127² ≈ 0.036`.
+const T_DIRECTIONS_CLOSE: i32 = 1024;
+
+#[inline(always)]
+fn dot_i8(a: [i8; 3], b: [i8; 3]) -> i32 {
+    a.iter()
+        .zip(&b)
+        .map(|(&x, &y)| i32::from(x) * i32::from(y))
+        .sum()
 }
 
 /// Bit `i` set where `block[i] == x`.
