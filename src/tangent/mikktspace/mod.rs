@@ -74,7 +74,7 @@ pub(crate) fn generate(
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh, parallel);
 
-    let mut contributions = filled(triangle_count, parallel, <[Contribution; 3]>::default);
+    let mut contributions = filled(triangle_count, parallel, || [Contribution::ZERO; 3]);
     let mut flags = vec![0u8; triangle_count];
     let triangles = per_triangle_pass(
         mesh,
@@ -181,7 +181,7 @@ struct Piece {
 ///
 /// The normal used is the corner's own; the welded vertex's may differ from it only in the sign
 /// of a zero component, which changes no bit of the sums, angles and comparisons made from it.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Contribution {
     /// The triangle's dP/du projected into the normal's plane and normalized, times the
     /// corner's angle in that plane: the term the reference adds for this corner.
@@ -189,6 +189,15 @@ struct Contribution {
     /// The direction of dP/dv projected, as `trunc(127 x)` of its unit vector (zero where it
     /// has none): enough to tell that no two frames around a vertex can be opposite.
     t_direction: [i8; 3],
+}
+
+impl Contribution {
+    /// A constant, so that filling an array with it is a plain store (building a `Default`
+    /// value on the stack and copying it out stalled on every element).
+    const ZERO: Contribution = Contribution {
+        weighted_s: [0.0; 3],
+        t_direction: [0; 3],
+    };
 }
 
 /// Frames, flags and corner contributions of a batch of triangles, in columns until they are
@@ -960,7 +969,7 @@ impl Run {
         let len = corners.len();
         // Only grown, never cleared: every place up to `len` is written below.
         if self.flags.len() < len {
-            self.contributions.resize(len, Contribution::default());
+            self.contributions.resize(len, Contribution::ZERO);
             self.ends.resize(len, [0; 2]);
             self.flags.resize(len, 0);
         }
