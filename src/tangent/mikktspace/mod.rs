@@ -578,10 +578,10 @@ impl Context<'_> {
             return false;
         }
 
-        // One sub-group unless two frames can be opposite (see `evaluate_group`): true if
-        // every frame lies within 89° of the first.
-        // Every `s` within ~89.4° of the first (a weighted `s` has its direction, or is zero
-        // and fails), and every `t` within ~88° (see `T_DIRECTIONS_CLOSE`).
+        // One sub-group unless two frames can be opposite (see `evaluate_group`), which they
+        // cannot be if every `s` lies within ~89.4° of the first (a weighted `s` has its
+        // direction, or is zero and fails) and every `t` within ~88° (see
+        // `T_DIRECTIONS_CLOSE`).
         let (rs, rt) = (contributions[0].weighted_s, contributions[0].t_direction);
         let rs2 = dot(rs, rs);
         // The test and the sum in one pass; the sum is wasted in the rare vertex that fails.
