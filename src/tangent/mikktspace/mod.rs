@@ -520,61 +520,16 @@ impl Context<'_> {
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
     ) -> bool {
-        const MAX: usize = 32;
         let corners = self.table.of(class);
         let k = corners.len();
-        if k == 0 || k > MAX {
-            return false;
-        }
-        // The other ends of the edges arriving at and leaving each corner. Unused places of
-        // `arriving` hold `NONE`, which no class equals, so that the matching below can compare
-        // whole blocks of eight (a few vector instructions) instead of looping over k.
-        let mut arriving = [NONE; MAX];
-        let mut leaving = [0u32; MAX];
-        for (j, &[arrives, leaves]) in ends.iter().enumerate() {
-            (arriving[j], leaving[j]) = (arrives, leaves);
-        }
-        let blocks = k.div_ceil(8);
-        // Pair each leaving edge with the arriving edge from the same vertex; more than one
-        // candidate on either side is the ambiguous case the general path resolves.
-        // `follows[j]`: the corners whose arriving edge pairs with the edge leaving corner j.
-        // Each corner must have at most one follower and follow at most one corner; then the
-        // pairs form paths and cycles, and the corners are connected exactly when they make a
-        // single path or a single cycle, which one walk decides (where a flood fill over an
-        // adjacency matrix took O(k²) steps).
-        let mut paired = 0u32;
-        let mut follows = [0u32; MAX];
-        for (follow, &leaves) in follows[..k].iter_mut().zip(&leaving) {
-            let mut matches = 0u32;
-            for (b, block) in arriving.chunks_exact(8).take(blocks).enumerate() {
-                matches |= matches_in_block(block, leaves) << (8 * b);
-            }
-            if matches & (matches.wrapping_sub(1)) != 0 || matches & paired != 0 {
-                return false;
-            }
-            paired |= matches;
-            *follow = matches;
-        }
-        let pairs = paired.count_ones() as usize;
-        let start = if pairs == k {
-            // All in cycles: one cycle through corner 0, or more than one group.
-            0
-        } else if pairs + 1 == k {
-            // One path, from the corner that follows none, or a path and cycles.
-            (!paired).trailing_zeros() as usize
-        } else {
-            return false;
+        // Most vertices have at most eight corners: arrays of eight are set up in a few stores.
+        let one_fan = match k {
+            0 => false,
+            1..=8 => one_fan::<8>(ends),
+            9..=32 => one_fan::<32>(ends),
+            _ => false,
         };
-        let mut at = start;
-        let mut visited = 1;
-        while follows[at] != 0 && visited <= k {
-            at = follows[at].trailing_zeros() as usize;
-            if at == start {
-                break;
-            }
-            visited += 1;
-        }
-        if visited != k {
+        if !one_fan {
             return false;
         }
 
@@ -998,6 +953,63 @@ fn dot_i8(a: [i8; 3], b: [i8; 3]) -> i32 {
         .zip(&b)
         .map(|(&x, &y)| i32::from(x) * i32::from(y))
         .sum()
+}
+
+/// Whether the edges around a vertex pair unambiguously (no other vertex is reached twice the
+/// same way) and connect all its corners, given each corner's [`Run::ends`]; at most `MAX`
+/// corners (8 or 32).
+#[inline(always)]
+fn one_fan<const MAX: usize>(ends: &[[u32; 2]]) -> bool {
+    let k = ends.len();
+    // The other ends of the edges arriving at and leaving each corner. Unused places of
+    // `arriving` hold `NONE`, which no class equals, so that the matching below can compare
+    // whole blocks of eight (a few vector instructions) instead of looping over k.
+    let mut arriving = [NONE; MAX];
+    let mut leaving = [0u32; MAX];
+    for (j, &[arrives, leaves]) in ends.iter().enumerate().take(MAX) {
+        (arriving[j], leaving[j]) = (arrives, leaves);
+    }
+    let blocks = k.div_ceil(8);
+    // Pair each leaving edge with the arriving edge from the same vertex; more than one
+    // candidate on either side is the ambiguous case the general path resolves.
+    // `follows[j]`: the corners whose arriving edge pairs with the edge leaving corner j.
+    // Each corner must have at most one follower and follow at most one corner; then the
+    // pairs form paths and cycles, and the corners are connected exactly when they make a
+    // single path or a single cycle, which one walk decides (where a flood fill over an
+    // adjacency matrix took O(k²) steps).
+    let mut paired = 0u32;
+    let mut follows = [0u32; MAX];
+    for (follow, &leaves) in follows[..k].iter_mut().zip(&leaving) {
+        let mut matches = 0u32;
+        for (b, block) in arriving.chunks_exact(8).take(blocks).enumerate() {
+            matches |= matches_in_block(block, leaves) << (8 * b);
+        }
+        if matches & (matches.wrapping_sub(1)) != 0 || matches & paired != 0 {
+            return false;
+        }
+        paired |= matches;
+        *follow = matches;
+    }
+    let pairs = paired.count_ones() as usize;
+    let start = if pairs == k {
+        // All in cycles: one cycle through corner 0, or more than one group.
+        0
+    } else if pairs + 1 == k {
+        // One path, from the corner that follows none, or a path and cycles.
+        (!paired).trailing_zeros() as usize
+    } else {
+        return false;
+    };
+    let mut at = start;
+    let mut visited = 1;
+    while follows[at] != 0 && visited <= k {
+        at = follows[at].trailing_zeros() as usize;
+        if at == start {
+            break;
+        }
+        visited += 1;
+    }
+    visited == k
 }
 
 /// Bit `i` set where `block[i] == x`.
