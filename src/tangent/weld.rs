@@ -62,25 +62,25 @@ impl Key<'_> {
         h ^ (h >> 32)
     }
 
+    /// Comparisons combined without branching, in two groups: keys that differ nearly always
+    /// differ in position (a hash collision), and the rest, when positions agree, is mostly
+    /// equal (a welded vertex), so one branch per group beats one per coordinate.
     #[inline]
     fn equal(&self, a: usize, b: usize) -> bool {
         let (pa, pb) = (self.positions[a], self.positions[b]);
-        if !(pa[0] == pb[0] && pa[1] == pb[1] && pa[2] == pb[2]) {
+        if !((pa[0] == pb[0]) & (pa[1] == pb[1]) & (pa[2] == pb[2])) {
             return false;
         }
+        let mut same = true;
         if let Some(normals) = self.normals {
             let (na, nb) = (normals[a], normals[b]);
-            if !(na[0] == nb[0] && na[1] == nb[1] && na[2] == nb[2]) {
-                return false;
-            }
+            same &= (na[0] == nb[0]) & (na[1] == nb[1]) & (na[2] == nb[2]);
         }
         if let Some(uvs) = self.uvs {
             let (ta, tb) = (uvs[a], uvs[b]);
-            if !(ta[0] == tb[0] && ta[1] == tb[1]) {
-                return false;
-            }
+            same &= (ta[0] == tb[0]) & (ta[1] == tb[1]);
         }
-        true
+        same
     }
 
     /// A vertex holding NaN equals nothing, not even itself, so it never enters the table.
