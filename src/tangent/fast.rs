@@ -244,7 +244,7 @@ pub(crate) fn generate(
                         side == 0
                     };
                     let t = encode(tangent, orientation_preserving);
-                    (t, check_normal.is_some_and(|n| fallback::passes(&t, n)))
+                    (t, check_normal.is_some_and(|n| fallback::passes(&t, &n)))
                 });
                 if one_side && valid {
                     let vertex = mesh.indices[corner];

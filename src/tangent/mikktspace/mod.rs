@@ -557,7 +557,7 @@ impl Context<'_> {
         }
         let raw = encode(normalize_or_zero(sum), orientation != 0);
         let normal = self.mesh.normals[self.mesh.indices[corners[0] as usize] as usize];
-        if fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, n)) {
+        if fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, &n)) {
             // Valid: every corner gets the same finished tangent, which a corner whose vertex is
             // the previous corner's has just been given.
             let tangent = fallback::with_w_convention(raw, self.flip_w);
@@ -595,7 +595,7 @@ impl Context<'_> {
         let normal = self.mesh.normals[self.mesh.indices[first as usize] as usize];
         let check_normal = fallback::check_normal(normal);
         for (&corner, &tangent) in corners.iter().zip(raw) {
-            let ok = check_normal.is_some_and(|n| fallback::passes(&tangent, n));
+            let ok = check_normal.is_some_and(|n| fallback::passes(&tangent, &n));
             self.finish_corner(corner as usize, tangent, ok, repairs, put);
         }
         self.finish_degenerate(class, raw[0], degenerate, repairs, put);
