@@ -19,7 +19,10 @@
 //! there: edges are paired from that short list, groups found by a local walk, and the sub-group
 //! split, which cannot happen unless two frames point in exactly opposite directions, is checked
 //! in O(k) and only done the reference's way when the check fails. Vertices are independent, so
-//! they are processed in parallel.
+//! they are processed in parallel. Each corner's share of step 6 (its frame projected into the
+//! plane of its normal, and its angle there) is computed in the triangle pass, where the inputs
+//! are at hand and a batch of triangles runs as vector loops; the per-vertex pass reads one
+//! 16-byte record per corner.
 //!
 //! The one order dependency of the reference is kept: a "group with anything" triangle takes the
 //! orientation of the first group (in the reference's order) to reach it. Vertices touching such
