@@ -83,6 +83,16 @@ impl Key<'_> {
         same
     }
 
+    /// The vertex's key in one array: position, normal, texture coordinate (zeros for the
+    /// attributes the key leaves out, which then compare equal).
+    #[inline]
+    fn flat(&self, v: usize) -> [f32; 8] {
+        let p = self.positions[v];
+        let n = self.normals.map_or([0.0; 3], |normals| normals[v]);
+        let t = self.uvs.map_or([0.0; 2], |uvs| uvs[v]);
+        [p[0], p[1], p[2], n[0], n[1], n[2], t[0], t[1]]
+    }
+
     /// A vertex holding NaN equals nothing, not even itself, so it never enters the table.
     #[inline]
     fn self_equal(&self, v: usize) -> bool {
@@ -93,8 +103,17 @@ impl Key<'_> {
 /// Groups equal vertices. Class ids are assigned in order of first appearance, so the result
 /// is the same whether or not it is computed in parallel.
 pub(crate) fn weld_vertices(key: &Key<'_>, parallel: bool) -> Weld {
+    weld(key, false, parallel)
+}
+
+/// [`weld_vertices`], told whether most vertices are expected to repeat.
+fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
     if one_table_buckets(key.positions.len()) <= ONE_TABLE_MAX_BUCKETS {
-        return weld_in_one_table(key);
+        return if mostly_repeated {
+            weld_in_one_table_keyed(key)
+        } else {
+            weld_in_one_table(key)
+        };
     }
     weld_in_shards(key, parallel)
 }
@@ -339,14 +358,82 @@ fn weld_in_one_table(key: &Key<'_>) -> Weld {
     }
 }
 
+/// [`weld_in_one_table`] for meshes that repeat most vertices (triangle soups): there nearly every
+/// vertex is compared with the first of its class, and a copy of each class's key in one array
+/// makes that comparison read one cache line instead of one per attribute array (and no class
+/// lookup). Where vertices are mostly distinct, writing the copies costs more than it saves.
+fn weld_in_one_table_keyed(key: &Key<'_>) -> Weld {
+    let vertex_count = key.positions.len();
+    let buckets = one_table_buckets(vertex_count);
+    let mask = buckets - 1;
+    // Each slot holds a class; `firsts[class]` is its key, copied into one place so that a
+    // comparison reads one cache line instead of one per attribute array.
+    let mut table = vec![NONE; buckets];
+    let mut firsts: Vec<[f32; 8]> = Vec::new();
+    let mut class_of_vertex = vec![NONE; vertex_count];
+    // Hash a block of vertices first and touch their buckets: independent loads that the CPU
+    // overlaps, where the insertion loop below would wait for one cache miss at a time.
+    const BLOCK: usize = 32;
+    let mut home = [0usize; BLOCK];
+    for block_start in (0..vertex_count).step_by(BLOCK) {
+        let block = block_start..(block_start + BLOCK).min(vertex_count);
+        let mut touched = 0u32;
+        for (v, slot) in block.clone().zip(&mut home) {
+            *slot = key.hash(v) as usize & mask;
+            touched ^= table[*slot];
+        }
+        std::hint::black_box(touched);
+        for (v, &slot) in block.zip(&home) {
+            let vertex_key = key.flat(v);
+            let class_count = firsts.len() as u32;
+            if !key.self_equal(v) {
+                class_of_vertex[v] = class_count;
+                firsts.push(vertex_key);
+                continue;
+            }
+            let mut slot = slot;
+            let mut probe = 0;
+            loop {
+                let class = table[slot];
+                if class == NONE {
+                    table[slot] = class_count;
+                    class_of_vertex[v] = class_count;
+                    firsts.push(vertex_key);
+                    break;
+                }
+                if same_key(&firsts[class as usize], &vertex_key) {
+                    class_of_vertex[v] = class;
+                    break;
+                }
+                probe += 1;
+                slot = (slot + probe) & mask;
+            }
+        }
+    }
+    Weld {
+        class_of_vertex,
+        class_count: firsts.len(),
+    }
+}
+
+/// Float equality of two [`Key::flat`] keys, combined without branching.
+#[inline]
+fn same_key(a: &[f32; 8], b: &[f32; 8]) -> bool {
+    a.iter().zip(b).fold(true, |same, (x, y)| same & (x == y))
+}
+
 /// Welds the vertices MikkTSpace would weld: equal position, normal and texture coordinate.
 pub(crate) fn weld_mesh(mesh: &Mesh<'_>, parallel: bool) -> Weld {
-    weld_vertices(
+    // About one vertex per corner (a triangle soup, or an index buffer that does not share):
+    // most vertices are then copies; a mesh whose corners share vertices has few.
+    let mostly_repeated = mesh.indices.len() < 2 * mesh.vertex_count();
+    weld(
         &Key {
             positions: mesh.positions,
             normals: Some(mesh.normals),
             uvs: mesh.uvs,
         },
+        mostly_repeated,
         parallel,
     )
 }
@@ -514,7 +601,7 @@ mod tests {
     /// The sharded weld numbers classes exactly as the single table does, in parallel or not:
     /// many duplicates (near and far apart), signed zeros and NaN vertices.
     #[test]
-    fn sharded_weld_matches_one_table() {
+    fn sharded_and_soup_welds_match_one_table() {
         // Twelve shards' worth, so that they are many.
         let count = SHARD_VERTICES * 12 + 17;
         let mut state = 0x2545_f491_4f6c_dd1du64;
@@ -566,6 +653,17 @@ mod tests {
             let sharded = weld_in_shards(&key, parallel);
             assert_eq!(sharded.class_count, expected.class_count);
             assert!(sharded.class_of_vertex == expected.class_of_vertex);
+        }
+        // The soup variant, with and without normals in the key.
+        let with_normals = Key {
+            normals: Some(&positions),
+            ..key
+        };
+        for key in [key, with_normals] {
+            let expected = weld_in_one_table(&key);
+            let keyed = weld_in_one_table_keyed(&key);
+            assert_eq!(keyed.class_count, expected.class_count);
+            assert!(keyed.class_of_vertex == expected.class_of_vertex);
         }
     }
 
