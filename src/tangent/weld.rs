@@ -110,9 +110,9 @@ pub(crate) fn weld_vertices(key: &Key<'_>, parallel: bool) -> Weld {
 fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
     if one_table_buckets(key.positions.len()) <= ONE_TABLE_MAX_BUCKETS {
         return if mostly_repeated {
-            weld_in_one_table_keyed(key)
+            weld_in_one_table::<FirstKeys>(key)
         } else {
-            weld_in_one_table(key)
+            weld_in_one_table::<FirstVertices>(key)
         };
     }
     weld_in_shards(key, parallel)
@@ -306,13 +306,60 @@ fn weld_in_shards(key: &Key<'_>, parallel: bool) -> Weld {
     }
 }
 
+/// How [`weld_in_one_table`] remembers each class's first vertex and compares a vertex with it.
+trait Firsts: Default {
+    /// Records vertex `v` as the first of the next class.
+    fn add(&mut self, key: &Key<'_>, v: usize);
+    /// Whether vertex `v` equals the first vertex of `class`.
+    fn same(&self, key: &Key<'_>, class: u32, v: usize) -> bool;
+}
+
+/// The first vertex's index: comparing reads its attributes from the mesh. For meshes whose
+/// vertices are mostly distinct, where few comparisons are made.
+#[derive(Default)]
+struct FirstVertices(Vec<u32>);
+
+impl Firsts for FirstVertices {
+    #[inline]
+    fn add(&mut self, _: &Key<'_>, v: usize) {
+        self.0.push(v as u32);
+    }
+
+    #[inline]
+    fn same(&self, key: &Key<'_>, class: u32, v: usize) -> bool {
+        key.equal(self.0[class as usize] as usize, v)
+    }
+}
+
+/// A copy of the first vertex's key, for meshes that repeat most vertices (triangle soups):
+/// there nearly every vertex is compared with the first of its class, and the copies in one
+/// array make that read one cache line instead of one per attribute array. Where vertices are
+/// mostly distinct, writing the copies costs more than it saves.
+#[derive(Default)]
+struct FirstKeys(Vec<[f32; 8]>);
+
+impl Firsts for FirstKeys {
+    #[inline]
+    fn add(&mut self, key: &Key<'_>, v: usize) {
+        self.0.push(key.flat(v));
+    }
+
+    #[inline]
+    fn same(&self, key: &Key<'_>, class: u32, v: usize) -> bool {
+        let (a, b) = (&self.0[class as usize], &key.flat(v));
+        // Combined without branching, as in `Key::equal`.
+        a.iter().zip(b).fold(true, |same, (x, y)| same & (x == y))
+    }
+}
+
 /// One hash table over all the vertices: for meshes small enough that it stays in cache.
-fn weld_in_one_table(key: &Key<'_>) -> Weld {
+fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
     let vertex_count = key.positions.len();
     let buckets = one_table_buckets(vertex_count);
     let mask = buckets - 1;
-    // Each slot holds the first vertex of a class.
+    // Each slot holds a class.
     let mut table = vec![NONE; buckets];
+    let mut firsts = F::default();
     let mut class_of_vertex = vec![NONE; vertex_count];
     let mut class_count = 0u32;
     // Hash a block of vertices first and touch their buckets: independent loads that the CPU
@@ -328,27 +375,26 @@ fn weld_in_one_table(key: &Key<'_>) -> Weld {
         }
         std::hint::black_box(touched);
         for (v, &slot) in block.zip(&home) {
-            if !key.self_equal(v) {
-                class_of_vertex[v] = class_count;
-                class_count += 1;
-                continue;
-            }
-            let mut slot = slot;
+            // A vertex holding NaN gets a class of its own but no slot.
+            let mut slot = if key.self_equal(v) { slot } else { NO_SLOT };
             let mut probe = 0;
-            loop {
-                let first = table[slot];
-                if first == NONE {
-                    table[slot] = v as u32;
-                    class_of_vertex[v] = class_count;
-                    class_count += 1;
+            while slot != NO_SLOT {
+                let class = table[slot];
+                if class == NONE {
+                    table[slot] = class_count;
                     break;
                 }
-                if key.equal(first as usize, v) {
-                    class_of_vertex[v] = class_of_vertex[first as usize];
+                if firsts.same(key, class, v) {
+                    class_of_vertex[v] = class;
                     break;
                 }
                 probe += 1;
                 slot = (slot + probe) & mask;
+            }
+            if class_of_vertex[v] == NONE {
+                class_of_vertex[v] = class_count;
+                firsts.add(key, v);
+                class_count += 1;
             }
         }
     }
@@ -358,69 +404,8 @@ fn weld_in_one_table(key: &Key<'_>) -> Weld {
     }
 }
 
-/// [`weld_in_one_table`] for meshes that repeat most vertices (triangle soups): there nearly every
-/// vertex is compared with the first of its class, and a copy of each class's key in one array
-/// makes that comparison read one cache line instead of one per attribute array (and no class
-/// lookup). Where vertices are mostly distinct, writing the copies costs more than it saves.
-fn weld_in_one_table_keyed(key: &Key<'_>) -> Weld {
-    let vertex_count = key.positions.len();
-    let buckets = one_table_buckets(vertex_count);
-    let mask = buckets - 1;
-    // Each slot holds a class; `firsts[class]` is its key, copied into one place so that a
-    // comparison reads one cache line instead of one per attribute array.
-    let mut table = vec![NONE; buckets];
-    let mut firsts: Vec<[f32; 8]> = Vec::new();
-    let mut class_of_vertex = vec![NONE; vertex_count];
-    // Hash a block of vertices first and touch their buckets: independent loads that the CPU
-    // overlaps, where the insertion loop below would wait for one cache miss at a time.
-    const BLOCK: usize = 32;
-    let mut home = [0usize; BLOCK];
-    for block_start in (0..vertex_count).step_by(BLOCK) {
-        let block = block_start..(block_start + BLOCK).min(vertex_count);
-        let mut touched = 0u32;
-        for (v, slot) in block.clone().zip(&mut home) {
-            *slot = key.hash(v) as usize & mask;
-            touched ^= table[*slot];
-        }
-        std::hint::black_box(touched);
-        for (v, &slot) in block.zip(&home) {
-            let vertex_key = key.flat(v);
-            let class_count = firsts.len() as u32;
-            if !key.self_equal(v) {
-                class_of_vertex[v] = class_count;
-                firsts.push(vertex_key);
-                continue;
-            }
-            let mut slot = slot;
-            let mut probe = 0;
-            loop {
-                let class = table[slot];
-                if class == NONE {
-                    table[slot] = class_count;
-                    class_of_vertex[v] = class_count;
-                    firsts.push(vertex_key);
-                    break;
-                }
-                if same_key(&firsts[class as usize], &vertex_key) {
-                    class_of_vertex[v] = class;
-                    break;
-                }
-                probe += 1;
-                slot = (slot + probe) & mask;
-            }
-        }
-    }
-    Weld {
-        class_of_vertex,
-        class_count: firsts.len(),
-    }
-}
-
-/// Float equality of two [`Key::flat`] keys, combined without branching.
-#[inline]
-fn same_key(a: &[f32; 8], b: &[f32; 8]) -> bool {
-    a.iter().zip(b).fold(true, |same, (x, y)| same & (x == y))
-}
+/// In place of a slot, for a vertex that never enters the table.
+const NO_SLOT: usize = usize::MAX;
 
 /// Welds the vertices MikkTSpace would weld: equal position, normal and texture coordinate.
 pub(crate) fn weld_mesh(mesh: &Mesh<'_>, parallel: bool) -> Weld {
@@ -644,7 +629,7 @@ mod tests {
             normals: None,
             uvs: Some(&uvs),
         };
-        let expected = weld_in_one_table(&key);
+        let expected = weld_in_one_table::<FirstVertices>(&key);
         assert!(
             expected.class_count < count / 2,
             "the test should weld a lot"
@@ -660,8 +645,8 @@ mod tests {
             ..key
         };
         for key in [key, with_normals] {
-            let expected = weld_in_one_table(&key);
-            let keyed = weld_in_one_table_keyed(&key);
+            let expected = weld_in_one_table::<FirstVertices>(&key);
+            let keyed = weld_in_one_table::<FirstKeys>(&key);
             assert_eq!(keyed.class_count, expected.class_count);
             assert!(keyed.class_of_vertex == expected.class_of_vertex);
         }
