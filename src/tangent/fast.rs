@@ -264,7 +264,7 @@ pub(crate) fn generate(
     let run = |range: std::ops::Range<usize>| {
         let mut copies = Copies::default();
         let mut repairs = Vec::new();
-        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, mesh.indices[c], t);
+        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
         for class in range {
             if !table.of(class).is_empty() {
                 evaluate(class, &mut repairs, &mut put);

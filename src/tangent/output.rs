@@ -66,12 +66,11 @@ impl<'a> SharedSplit<'a> {
         }
     }
 
-    /// Records the final tangent of `corner`, whose vertex is `vertex`. Every corner is put
-    /// exactly once, and all corners of one input vertex by the same worker with the same
-    /// `copies`.
+    /// Records the final tangent of `corner`. Every corner is put exactly once, and all corners
+    /// of one input vertex by the same worker with the same `copies`.
     #[inline]
-    pub fn put(&self, copies: &mut Copies, corner: usize, vertex: u32, tangent: [f32; 4]) {
-        let v = vertex as usize;
+    pub fn put(&self, copies: &mut Copies, corner: usize, tangent: [f32; 4]) {
+        let v = self.indices[corner] as usize;
         let current = load4(&self.vertex_tangents[v]);
         // Float equality: -0 and 0 are the same tangent (tangents are never NaN here).
         if current == tangent {

@@ -137,8 +137,7 @@ pub(crate) fn generate(
             .into_par_iter()
             .map(|range| {
                 let mut copies = Copies::default();
-                let mut put =
-                    |c: usize, t: [f32; 4]| shared.put(&mut copies, c, mesh.indices[c], t);
+                let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
                 let piece = context.process_classes(range, &flags, &degenerate, &mut put);
                 (piece, copies)
             })
@@ -154,13 +153,13 @@ pub(crate) fn generate(
         (parts, repairs, touched)
     } else {
         let mut copies = Copies::default();
-        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, mesh.indices[c], t);
+        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
         let piece = context.process_classes(0..weld.class_count, &flags, &degenerate, &mut put);
         (vec![copies], piece.repairs, piece.touched)
     };
     // The vertices left for the sequential pass own their input vertices too: new copies.
     let mut copies = Copies::default();
-    let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, mesh.indices[c], t);
+    let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
     context.group_touched_vertices(&touched, &mut flags, &degenerate, &mut repairs, &mut put);
     parts.push(copies);
 
