@@ -5,28 +5,27 @@
 FROM rust:1-slim-bookworm AS build
 WORKDIR /src
 
-# Dependencies first, against stub sources, so that this layer is rebuilt only when
-# Cargo.toml or Cargo.lock change. (Cargo.toml names benches/tangents.rs, so it must exist.)
+# The workspace as it is (manifests, the root package and crates/; benches/ because the root
+# manifest names its benches), so there is no hand-made stub to drift from the manifests.
+# Dependencies are kept between builds in cache mounts rather than in a stub layer: a change to
+# the sources rebuilds only the workspace's own crates.
 COPY Cargo.toml Cargo.lock ./
-RUN mkdir -p src benches \
-    && echo 'fn main() {}' > src/main.rs \
-    && touch src/lib.rs \
-    && for bench in tangents http; do echo 'fn main() {}' > benches/$bench.rs; done \
-    && cargo build --release --locked --bin tspace \
-    && rm -rf src
-
-# Then the crate itself. COPY keeps the files' own modification times, which may be older than
-# the stub build's; touching the crate roots makes Cargo rebuild them.
+COPY crates ./crates
+COPY benches ./benches
 COPY src ./src
-RUN touch src/lib.rs src/main.rs \
-    && cargo build --release --locked --bin tspace
+# The image's binary carries no debug information or symbols (about 55 MB -> 17 MB).
+ENV CARGO_PROFILE_RELEASE_DEBUG=false CARGO_PROFILE_RELEASE_STRIP=symbols
+RUN --mount=type=cache,target=/usr/local/cargo/registry \
+    --mount=type=cache,target=/src/target \
+    cargo build --release --locked --bin tspace \
+    && cp target/release/tspace /usr/local/bin/tspace
 
 # ---- run ----
 FROM debian:bookworm-slim
 RUN groupadd --system --gid 10001 tspace \
     && useradd --system --uid 10001 --gid tspace --no-create-home --home-dir /nonexistent \
         --shell /usr/sbin/nologin tspace
-COPY --from=build /src/target/release/tspace /usr/local/bin/tspace
+COPY --from=build /usr/local/bin/tspace /usr/local/bin/tspace
 WORKDIR /data
 USER 10001:10001
 ENV TSPACE_ADDR=0.0.0.0:8080

@@ -10,7 +10,7 @@
 //!   `.gltf` input alike, with no external resources.
 //! - [`obj`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte.
 //! - [`parts`]: a multipart upload, as length-prefixed records (see [`parts`]).
-//! - [`core`]: arbitrary geometry straight into [`crate::tangent::generate`], with the core's
+//! - [`core`]: arbitrary geometry straight into [`tspace_tangent::generate`], with the core's
 //!   invariants checked on every successful result.
 //!
 //! The scene options (method, overwrite, all, output format, normal mode, write) of [`glb`],
@@ -24,8 +24,9 @@ use crate::scene::gltf::write::OutputFormat;
 use crate::scene::gltf::{self as scene_gltf, SceneLimits, SceneOptions};
 use crate::scene::input::{self, InputKind};
 use crate::scene::uri::PartSet;
-use crate::tangent::{
-    self, CoreError, MeshInput, Method, NormalMode, Options, Tangents, UvOrigin, Weighting,
+use tspace_tangent::{
+    self as tangent, CoreError, MeshInput, Method, NormalMode, Options, Tangents, UvOrigin,
+    Weighting,
 };
 
 /// Small enough that one input stays fast, large enough for every fixture-sized seed.

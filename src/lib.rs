@@ -4,4 +4,3 @@ pub mod config;
 pub mod fuzz_targets;
 pub mod scene;
 pub mod server;
-pub mod tangent;

@@ -13,8 +13,8 @@ use common::meshes::{Primitive, load_gltf, load_obj};
 use common::{angle_degrees, reference_is_valid, reference_tangents};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tspace::tangent::diagnostics::SAMPLE_SIZE;
-use tspace::tangent::{FallbackCounts, MeshInput, Options, UvOrigin, generate};
+use tspace_tangent::diagnostics::SAMPLE_SIZE;
+use tspace_tangent::{FallbackCounts, MeshInput, Options, UvOrigin, generate};
 
 fn fixtures_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures")

@@ -1,6 +1,6 @@
 mod common;
 use common::*;
-use tspace::tangent::{MeshInput, Options, UvOrigin, generate};
+use tspace_tangent::{MeshInput, Options, UvOrigin, generate};
 
 fn compare(
     name: &str,

@@ -22,8 +22,8 @@ use proptest::prelude::*;
 use proptest::sample::Index;
 use random_mesh::{RandomMesh, any_mesh, full_indexed_mesh};
 use std::collections::HashMap;
-use tspace::tangent::diagnostics::SAMPLE_SIZE;
-use tspace::tangent::{
+use tspace_tangent::diagnostics::SAMPLE_SIZE;
+use tspace_tangent::{
     CoreError, Diagnostics, Method, NormalMode, Options, Tally, Tangents, UvOrigin, Weighting,
     generate,
 };

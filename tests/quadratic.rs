@@ -7,7 +7,7 @@
 
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-use tspace::tangent::{MeshInput, Method, Options, generate};
+use tspace_tangent::{MeshInput, Method, Options, generate};
 
 struct Mesh {
     positions: Vec<[f32; 3]>,

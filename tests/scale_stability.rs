@@ -13,7 +13,7 @@ mod common;
 
 use common::meshes::{Primitive, load_gltf, load_obj};
 use std::path::Path;
-use tspace::tangent::{MeshInput, Options, generate};
+use tspace_tangent::{MeshInput, Options, generate};
 
 const FIXTURES: &[&str] = &[
     "NormalTangentMirrorTest/NormalTangentMirrorTest.gltf",

@@ -11,7 +11,7 @@ use tspace::scene::gltf::load::NoResources;
 use tspace::scene::gltf::write::OutputFormat;
 use tspace::scene::gltf::{Processed, SceneOptions, process};
 use tspace::scene::uri::PartSet;
-use tspace::tangent::Method;
+use tspace_tangent::Method;
 
 /// Processes a `.gltf` fixture with its `.bin` supplied as a part.
 fn run_gltf(dir: &str, name: &str, options: SceneOptions) -> Processed {
@@ -600,14 +600,14 @@ fn morph_targets_get_tangent_deltas_from_the_morphed_mesh() {
         .collect();
     let uvs2: Vec<[f32; 2]> = uvs.chunks(2).map(|c| [c[0], c[1]]).collect();
     let indices32: Vec<u32> = indices.iter().map(|&i| u32::from(i)).collect();
-    let expected = tspace::tangent::generate(
-        &tspace::tangent::MeshInput {
+    let expected = tspace_tangent::generate(
+        &tspace_tangent::MeshInput {
             positions: &morphed,
             normals: Some(&normals3),
             uvs: Some(&uvs2),
             indices: Some(&indices32),
         },
-        &tspace::tangent::Options::default(),
+        &tspace_tangent::Options::default(),
     )
     .unwrap();
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
@@ -757,14 +757,14 @@ fn required_meshopt_compression_is_decoded() {
         .collect();
     let normals: Vec<[f32; 3]> = QUAD_NORMALS.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
     let uv2: Vec<[f32; 2]> = uvs.chunks(2).map(|c| [c[0], c[1]]).collect();
-    let expected = tspace::tangent::generate(
-        &tspace::tangent::MeshInput {
+    let expected = tspace_tangent::generate(
+        &tspace_tangent::MeshInput {
             positions: &positions,
             normals: Some(&normals),
             uvs: Some(&uv2),
             indices: Some(&indices),
         },
-        &tspace::tangent::Options::default(),
+        &tspace_tangent::Options::default(),
     )
     .unwrap();
     let expected: Vec<f32> = expected

@@ -7,7 +7,7 @@ use common::{assert_valid_output, fixture, glb_json};
 use tspace::scene::gltf::SceneOptions;
 use tspace::scene::input::{InputKind, process};
 use tspace::scene::uri::PartSet;
-use tspace::tangent::Method;
+use tspace_tangent::Method;
 
 fn assert_valid(name: &str, bytes: &[u8]) {
     if let Some(report) = assert_valid_output(name, bytes) {

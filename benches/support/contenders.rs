@@ -1,7 +1,7 @@
 //! The meshes under test and the tangent generators that race on them.
 
 pub use crate::shapes::angle_degrees;
-use tspace::tangent::{self, MeshInput, Method, Options, Tangents, Weighting};
+use tspace_tangent::{self as tangent, MeshInput, Method, Options, Tangents, Weighting};
 
 /// Where a mesh comes from; the generated ones have an exact tangent per vertex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -10,10 +10,10 @@ mod paths;
 
 use crate::config::ServeArgs;
 use crate::scene::gltf::write::OutputFormat;
-use crate::tangent::Method;
 use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use tspace_tangent::Method;
 
 /// The exit codes, for `--help` (the README repeats them).
 macro_rules! exit_codes {

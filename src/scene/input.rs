@@ -14,7 +14,7 @@ use super::gltf::{self, Processed, SceneOptions, glb};
 use super::obj::{self, ObjErrorKind};
 use super::obj_gltf::{self, ConvertError, ConvertLimits};
 use super::uri::PartSet;
-use crate::tangent::Method;
+use tspace_tangent::Method;
 
 /// What kind of file the main input is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -95,9 +95,9 @@
 use std::collections::HashMap;
 use std::fmt;
 
-use super::gltf::json::{escape_str, f32_text};
 use super::obj::{Corner, Material, Mtl, Obj, Texture};
 use super::uri::PartSet;
+use tspace_json::{escape_str, f32_text};
 
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
@@ -1567,10 +1567,10 @@ pub fn obj_to_gltf(
 mod tests {
     use super::*;
     use crate::scene::gltf::glb;
-    use crate::scene::gltf::json::{Document, Node};
     use crate::scene::obj::{FaceGroup, Limits, parse_mtl, parse_obj};
     use proptest::prelude::*;
     use std::collections::HashSet;
+    use tspace_json::{Document, Node};
 
     const PNG: &[u8] = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR not really a png";
     const JPEG: &[u8] = b"\xFF\xD8\xFF\xE0\0\x10JFIF\0 not really a jpeg";

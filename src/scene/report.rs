@@ -2,8 +2,8 @@
 //! for kept tangents an audit against MikkTSpace. Field names are snake_case and stable; counts
 //! come with the first few offending indices so that a user can find them in a viewer.
 
-use crate::tangent::{Diagnostics, FallbackCounts, Tally};
 use serde::Serialize;
+use tspace_tangent::{Diagnostics, FallbackCounts, Tally};
 
 /// The report of one scene.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -197,7 +197,7 @@ impl From<&FallbackCounts> for FallbackReport {
 
 impl From<&Diagnostics> for DiagnosticsReport {
     fn from(d: &Diagnostics) -> Self {
-        use crate::tangent::NormalMode;
+        use tspace_tangent::NormalMode;
         DiagnosticsReport {
             method: d.method.name(),
             triangles: d.triangles,

@@ -559,7 +559,7 @@ mod tests {
             eprintln!("skipping: {path} is absent");
             return;
         };
-        let doc = super::super::gltf::json::Document::parse(text.as_bytes()).unwrap();
+        let doc = tspace_json::Document::parse(text.as_bytes()).unwrap();
         let buffer = doc.root().get("buffers").unwrap().index(0).unwrap();
         let uri = buffer.get("uri").unwrap().as_str().unwrap();
         let length = buffer.get("byteLength").unwrap().as_f64().unwrap() as usize;

@@ -8,7 +8,6 @@ use crate::scene::gltf::write::OutputFormat;
 use crate::scene::gltf::{Processed, SceneLimits, SceneOptions};
 use crate::scene::input::{self, InputKind};
 use crate::scene::uri::{PartSet, percent_decode};
-use crate::tangent::Method;
 use axum::body::{Body, Bytes};
 use axum::extract::{FromRequest, Multipart, Path, RawQuery, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
@@ -16,6 +15,7 @@ use axum::response::{IntoResponse, Response};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use tokio::sync::OwnedSemaphorePermit;
+use tspace_tangent::Method;
 use utoipa::OpenApi;
 
 /// The query options of both POST routes.

@@ -18,7 +18,7 @@
 
 use std::fmt;
 
-use super::json::Node;
+use tspace_json::Node;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ComponentType {
@@ -994,9 +994,9 @@ fn required_component_type(
 
 #[cfg(test)]
 mod tests {
-    use super::super::json::Document;
     use super::*;
     use proptest::prelude::*;
+    use tspace_json::Document;
 
     const MAX: usize = 1 << 20;
 

@@ -3,11 +3,11 @@
 //! tangents a file already has.
 
 use super::accessor::{self, AccessorError, ComponentType};
-use super::json::Node;
 use super::plan::{GeometryKey, Topology};
 use crate::scene::error::SceneError;
 use crate::scene::report::{Audit, TallyReport};
-use crate::tangent::{self, CoreError, MeshInput, Options, Tally, Tangents};
+use tspace_json::Node;
+use tspace_tangent::{self as tangent, CoreError, MeshInput, Options, Tally, Tangents};
 
 /// Limits on the geometry one scene may hold.
 #[derive(Clone, Copy, Debug)]

@@ -329,12 +329,12 @@ mod tests {
         assert_eq!(glb.bin.map(<[u8]>::len), Some(648));
         assert!(glb.other_chunks.is_empty());
         assert_eq!(write(glb.json, glb.bin, &glb.other_chunks).unwrap(), bytes);
-        super::super::json::Document::parse(glb.json).unwrap();
+        tspace_json::Document::parse(glb.json).unwrap();
     }
 
     #[test]
     fn edited_json_round_trips_through_glb() {
-        use super::super::json::Document;
+        use tspace_json::Document;
         let bytes = fixture("Box/Box.glb");
         let glb = parse(&bytes).unwrap();
         let doc = Document::parse(glb.json).unwrap();

@@ -6,10 +6,10 @@
 //! `Resources`, and an upload's resources are the parts it carried.
 
 use super::glb::{self, Chunk};
-use super::json::{Document, Node};
 use crate::scene::error::SceneError;
 use crate::scene::uri::{self, PartSet, UriError};
 use std::borrow::Cow;
+use tspace_json::{Document, Node};
 
 /// Where the bytes a relative URI names come from.
 pub trait Resources<'a> {
@@ -288,11 +288,11 @@ fn decode_meshopt(
         let stride = required("byteStride")?;
         let count = required("count")?;
         let name = |key: &str| ext.get(key).and_then(Node::as_str);
-        let mode = super::meshopt::Mode::from_name(name("mode").unwrap_or(""))
+        let mode = tspace_meshopt::Mode::from_name(name("mode").unwrap_or(""))
             .map_err(|e| SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}")))?;
         let filter = match name("filter") {
-            None => super::meshopt::Filter::None,
-            Some(f) => super::meshopt::Filter::from_name(f).map_err(|e| {
+            None => tspace_meshopt::Filter::None,
+            Some(f) => tspace_meshopt::Filter::from_name(f).map_err(|e| {
                 SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}"))
             })?,
         };
@@ -306,8 +306,8 @@ fn decode_meshopt(
                     format!("{ext_path}: the compressed bytes lie outside buffers[{source}]"),
                 )
             })?;
-        let bytes = super::meshopt::decode(
-            &super::meshopt::Compressed {
+        let bytes = tspace_meshopt::decode(
+            &tspace_meshopt::Compressed {
                 data,
                 count,
                 byte_stride: stride,

@@ -5,22 +5,22 @@
 pub mod accessor;
 pub mod compute;
 pub mod glb;
-pub mod json;
+
 pub mod load;
-pub mod meshopt;
+
 pub mod plan;
 pub mod refs;
 pub mod write;
 
 use crate::scene::error::SceneError;
 use crate::scene::report::{MorphReport, PrimitiveReport, Report};
-use crate::tangent::{Method, NormalMode, Options, UvOrigin};
 use compute::{Computed, GeometryLimits};
-use json::Node;
 use load::{LoadLimits, Resources};
 use plan::{Action, GeometryKey, PlanOptions, Topology};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use tspace_json::Node;
+use tspace_tangent::{Method, NormalMode, Options, UvOrigin};
 use write::{Changes, OutputFormat, PrimitiveEdit, Ref};
 
 /// Caps on what one scene may make tspace allocate or compute.

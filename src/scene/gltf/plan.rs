@@ -8,7 +8,7 @@
 //! reason. Primitives with the same mode, indices, `POSITION`, `NORMAL`, texture coordinates and
 //! morph targets are computed once.
 
-use super::json::Node;
+use tspace_json::Node;
 
 /// How a primitive's triangles are laid out (`mode`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -347,7 +347,7 @@ pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::gltf::json::Document;
+    use tspace_json::Document;
 
     fn plans(json: &str, options: PlanOptions) -> Vec<PrimitivePlan> {
         let doc = Document::parse(json.as_bytes()).unwrap();

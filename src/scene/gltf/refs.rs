@@ -5,7 +5,7 @@
 //! extensions in [`KNOWN_EXTENSIONS`]; when a document uses any other extension, one of its
 //! members might hold an index this list does not know, so the writer then drops nothing.
 
-use super::json::Node;
+use tspace_json::Node;
 
 /// Extensions whose every index reference is listed here (most have none at all).
 pub const KNOWN_EXTENSIONS: &[&str] = &[
@@ -160,7 +160,7 @@ pub fn unknown_extensions(root: &Node) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::gltf::json::Document;
+    use tspace_json::Document;
 
     #[test]
     fn finds_every_kind_of_reference() {

@@ -12,13 +12,13 @@
 
 use super::accessor::{self, ComponentType, ElementType};
 use super::glb;
-use super::json::{self, Document, Editor, Node};
 use super::load::{BufferSource, Container, Loaded, Resources};
 use super::refs::{self, Owner};
 use crate::scene::error::SceneError;
 use crate::scene::report::Dropped;
 use crate::scene::uri;
 use std::collections::{BTreeMap, HashMap};
+use tspace_json::{self as json, Document, Editor, Node};
 
 /// The container to write.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -1291,7 +1291,7 @@ mod tests {
 
     #[test]
     fn fixtures_round_trip() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures");
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures");
         for name in [
             "Avocado/Avocado.gltf",
             "Lantern/Lantern.gltf",

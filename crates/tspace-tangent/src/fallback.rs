@@ -296,7 +296,7 @@ impl FallbackCounts {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tangent::math::add;
+    use crate::math::add;
     use proptest::prelude::*;
 
     /// A tangent almost orthogonal to `n`: its unit projection into `n`'s plane, tilted towards
