@@ -1,4 +1,4 @@
-//! The `tspace` binary: `serve`, `process` and `analyze` (see `cli.rs`).
+//! The `tspace` binary: `serve`, `process`, `analyze` and `healthcheck` (see `src/cli/`).
 
 fn main() -> std::process::ExitCode {
     tspace::cli::main()

@@ -2,25 +2,63 @@
 //! stderr, and the `--report` document.
 
 use super::Exit;
-use crate::scene::error::SceneError;
+use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::Report;
 use serde::Serialize;
+use std::fmt;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
+
+/// A failure's code: one of the [`ProblemCode`]s the service shares, or one of the few only a
+/// command line has, for files it reads and writes itself (the service never names a file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum FailureCode {
+    Problem(ProblemCode),
+    /// Missing, not a file, or unreadable.
+    UnreadableInput,
+    /// Neither its name nor its bytes say GLB, glTF or OBJ.
+    UnknownFormat,
+    /// An output or the report could not be written.
+    WriteFailed,
+}
+
+impl FailureCode {
+    /// What `(code)` and the `--report` document's `code` say.
+    pub(crate) fn slug(self) -> &'static str {
+        match self {
+            FailureCode::Problem(code) => code.code(),
+            FailureCode::UnreadableInput => "unreadable-input",
+            FailureCode::UnknownFormat => "unknown-format",
+            FailureCode::WriteFailed => "write-failed",
+        }
+    }
+}
+
+impl From<ProblemCode> for FailureCode {
+    fn from(code: ProblemCode) -> Self {
+        FailureCode::Problem(code)
+    }
+}
+
+impl fmt::Display for FailureCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.slug())
+    }
+}
 
 /// Why one file failed.
 #[derive(Debug)]
 pub(crate) struct Failure {
     pub exit: Exit,
-    pub code: &'static str,
+    pub code: FailureCode,
     pub message: String,
 }
 
 impl Failure {
-    pub(crate) fn bad_input(code: &'static str, message: impl Into<String>) -> Self {
+    pub(crate) fn bad_input(code: impl Into<FailureCode>, message: impl Into<String>) -> Self {
         Failure {
             exit: Exit::BadInput,
-            code,
+            code: code.into(),
             message: message.into(),
         }
     }
@@ -30,7 +68,7 @@ impl From<SceneError> for Failure {
     fn from(e: SceneError) -> Self {
         let mut message = e.message;
         // The scene layer words this for the HTTP query string.
-        if e.code == "obj-without-uvs" {
+        if e.code == ProblemCode::ObjWithoutUvs {
             message = if message.contains("method=axis") {
                 message.replace("method=axis", "--method axis")
             } else {
@@ -61,7 +99,7 @@ pub(crate) fn guarded<T>(f: impl FnOnce() -> Result<T, Failure>) -> Result<T, Fa
     catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|payload| {
         Err(Failure {
             exit: Exit::Internal,
-            code: "internal",
+            code: ProblemCode::Internal.into(),
             message: format!(
                 "internal error: {}; this is a bug in tspace, please report it (RUST_BACKTRACE=1 shows where)",
                 panic_message(&*payload)
@@ -120,7 +158,7 @@ impl<'a> EntryJson<'a> {
             Err(f) => (
                 None,
                 Some(ErrorJson {
-                    code: f.code,
+                    code: f.code.slug(),
                     message: &f.message,
                 }),
             ),
@@ -163,7 +201,7 @@ mod tests {
         let result: Result<(), Failure> = guarded(|| panic!("boom {}", 7));
         let failure = result.unwrap_err();
         assert_eq!(failure.exit, Exit::Internal);
-        assert_eq!(failure.code, "internal");
+        assert_eq!(failure.code.slug(), "internal");
         assert!(failure.message.contains("boom 7"), "{}", failure.message);
     }
 }

@@ -6,15 +6,17 @@
 
 mod held;
 pub mod metrics;
+mod mixed;
 pub mod pool;
 pub mod problem;
 mod routes;
 mod stall;
 
 use crate::config::{LogFormat, ServerConfig};
+use crate::scene::error::ProblemCode;
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
-use axum::http::{HeaderName, HeaderValue, Response, StatusCode, header};
+use axum::http::{HeaderName, HeaderValue, Response, header};
 use axum::middleware::{self, Next};
 use axum::response::IntoResponse;
 use metrics::Metrics;
@@ -100,8 +102,7 @@ fn panic_response(payload: Box<dyn std::any::Any + Send + 'static>) -> Response<
         .unwrap_or_default();
     tracing::error!(panic = %message, "handler panicked");
     Problem::new(
-        StatusCode::INTERNAL_SERVER_ERROR,
-        "internal",
+        ProblemCode::Internal,
         "tspace failed unexpectedly; the error was logged",
     )
     .into_response()
@@ -116,10 +117,13 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/healthz", axum::routing::get(routes::healthz))
         .route("/readyz", axum::routing::get(routes::readyz))
         .route("/metrics", axum::routing::get(routes::metrics))
-        .route("/problems/{code}", axum::routing::get(routes::problem_type))
+        .route(
+            "/problems/{code}",
+            axum::routing::get(problem::problem_page),
+        )
         .merge(SwaggerUi::new("/docs").url("/openapi.json", routes::ApiDoc::openapi()))
-        .fallback(routes::not_found)
-        .method_not_allowed_fallback(routes::method_not_allowed)
+        .fallback(problem::not_found)
+        .method_not_allowed_fallback(problem::method_not_allowed)
         .layer(middleware::from_fn_with_state(
             Arc::clone(&app),
             record_metrics,

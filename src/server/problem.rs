@@ -1,12 +1,16 @@
 //! Errors as `application/problem+json` (RFC 9457), with a stable `type` per cause.
 //!
 //! `type` is `/problems/<code>`, relative to the server; `GET /problems/<code>` explains it. The
-//! `code` member repeats the last segment for clients that only want the word.
+//! `code` member repeats the last segment for clients that only want the word. Codes, statuses
+//! and titles all come from [`ProblemCode`].
 
-use crate::scene::error::{ErrorClass, SceneError};
+use crate::scene::error::{ErrorClass, ProblemCode, SceneError};
+use axum::extract::Path;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
+use utoipa::openapi::schema::{ObjectBuilder, Type};
+use utoipa::openapi::{ContentBuilder, Ref, ResponseBuilder};
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Problem {
@@ -15,107 +19,19 @@ pub struct Problem {
     pub title: &'static str,
     pub status: u16,
     pub detail: String,
-    pub code: &'static str,
+    pub code: ProblemCode,
     #[serde(skip)]
     pub retry_after: Option<u64>,
 }
 
-/// Every problem code the server can answer with, its status and title.
-pub const CODES: &[(&str, u16, &str)] = &[
-    ("malformed-glb", 400, "The GLB container is malformed"),
-    ("malformed-json", 400, "The glTF JSON is malformed"),
-    ("malformed-gltf", 400, "The glTF document is malformed"),
-    ("malformed-uri", 400, "A URI in the file is malformed"),
-    ("malformed-obj", 400, "The OBJ file is malformed"),
-    ("malformed-mtl", 400, "The MTL file is malformed"),
-    (
-        "malformed-meshopt",
-        400,
-        "Meshopt-compressed data is malformed",
-    ),
-    (
-        "malformed-multipart",
-        400,
-        "The multipart body is malformed",
-    ),
-    ("invalid-accessor", 400, "An accessor is invalid"),
-    ("invalid-primitive", 400, "A primitive is invalid"),
-    ("invalid-buffer-view", 400, "A buffer view is invalid"),
-    (
-        "buffer-too-short",
-        400,
-        "A buffer is shorter than it declares",
-    ),
-    ("invalid-option", 400, "A query option is invalid"),
-    ("missing-file", 400, "The request carries no scene"),
-    (
-        "unsupported-media-type",
-        415,
-        "The body's media type is not a scene tspace reads",
-    ),
-    (
-        "missing-resource",
-        422,
-        "A file the scene refers to was not supplied",
-    ),
-    ("refused-uri", 422, "A URI in the scene is refused"),
-    (
-        "unsupported-version",
-        422,
-        "The glTF version is not supported",
-    ),
-    (
-        "draco-required",
-        422,
-        "The scene requires Draco compression, which tspace does not decode",
-    ),
-    ("obj-without-uvs", 422, "The OBJ has no texture coordinates"),
-    (
-        "obj-not-convertible",
-        422,
-        "The OBJ cannot be converted to glTF",
-    ),
-    ("internal-edit", 500, "tspace could not edit the document"),
-    ("body-too-large", 413, "The request body is over the limit"),
-    ("buffer-too-large", 413, "A buffer is over the limit"),
-    (
-        "too-many-vertices",
-        413,
-        "An accessor has more elements than allowed",
-    ),
-    (
-        "too-many-triangles",
-        413,
-        "The scene has more triangles than allowed",
-    ),
-    ("too-large", 413, "The scene is over a limit"),
-    (
-        "request-timeout",
-        408,
-        "The request body arrived too slowly",
-    ),
-    ("overloaded", 503, "The server is busy; retry shortly"),
-    (
-        "timeout",
-        504,
-        "The request took longer than the server allows",
-    ),
-    ("internal", 500, "An internal error occurred"),
-];
-
-fn title_of(code: &str) -> &'static str {
-    CODES
-        .iter()
-        .find(|(c, _, _)| *c == code)
-        .map_or("Error", |(_, _, t)| t)
-}
-
 impl Problem {
-    pub fn new(status: StatusCode, code: &'static str, detail: impl Into<String>) -> Self {
+    /// The problem for `code`: its status and title come from the code, `detail` from this
+    /// request.
+    pub fn new(code: ProblemCode, detail: impl Into<String>) -> Self {
         Problem {
-            type_uri: format!("/problems/{code}"),
-            title: title_of(code),
-            status: status.as_u16(),
+            type_uri: type_uri(code),
+            title: code.title(),
+            status: code.status(),
             detail: detail.into(),
             code,
             retry_after: None,
@@ -126,8 +42,7 @@ impl Problem {
         Problem {
             retry_after: Some(1),
             ..Problem::new(
-                StatusCode::SERVICE_UNAVAILABLE,
-                "overloaded",
+                ProblemCode::Overloaded,
                 "every worker is busy and the queue is full; retry in a moment",
             )
         }
@@ -138,17 +53,18 @@ impl Problem {
     }
 }
 
+/// `/problems/<code>`, except for a route or method that does not exist: those mean no more
+/// than their HTTP status, which RFC 9457 spells `about:blank`.
+fn type_uri(code: ProblemCode) -> String {
+    match code.class() {
+        ErrorClass::NoSuchRoute => "about:blank".to_owned(),
+        _ => format!("/problems/{code}"),
+    }
+}
+
 impl From<SceneError> for Problem {
     fn from(error: SceneError) -> Self {
-        let status = match error.class {
-            ErrorClass::Malformed => StatusCode::BAD_REQUEST,
-            ErrorClass::Unprocessable if error.code == "internal-edit" => {
-                StatusCode::INTERNAL_SERVER_ERROR
-            }
-            ErrorClass::Unprocessable => StatusCode::UNPROCESSABLE_ENTITY,
-            ErrorClass::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
-        };
-        Problem::new(status, error.code, error.message)
+        Problem::new(error.code, error.message)
     }
 }
 
@@ -166,5 +82,201 @@ impl IntoResponse for Problem {
             headers.insert(header::RETRY_AFTER, HeaderValue::from(seconds));
         }
         response
+    }
+}
+
+/// `GET /problems/{code}`: one line saying what a problem `type` means.
+pub async fn problem_page(Path(slug): Path<String>) -> Response {
+    match ProblemCode::from_slug(&slug) {
+        Some(code) => (
+            StatusCode::OK,
+            format!("{code} (HTTP {}): {}.\n", code.status(), code.title()),
+        )
+            .into_response(),
+        None => not_found().await.into_response(),
+    }
+}
+
+pub async fn method_not_allowed() -> Problem {
+    Problem::new(
+        ProblemCode::MethodNotAllowed,
+        "this route does not take that method; see /docs",
+    )
+}
+
+pub async fn not_found() -> Problem {
+    Problem::new(ProblemCode::NotFound, "no such route; see /docs")
+}
+
+/// Adds the problem+json schema, its `code` enumerated from [`ProblemCode::ALL`], and to every
+/// `POST` operation one response per error status listing its codes, so that the OpenAPI
+/// document cannot disagree with what the service answers.
+pub struct ProblemCodes;
+
+impl utoipa::Modify for ProblemCodes {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components
+            .schemas
+            .insert("Problem".into(), problem_schema().into());
+        for item in openapi.paths.paths.values_mut() {
+            if let Some(operation) = item.post.as_mut() {
+                for (status, response) in error_responses() {
+                    operation
+                        .responses
+                        .responses
+                        .insert(status, response.into());
+                }
+            }
+        }
+    }
+}
+
+/// The codes a scene route can answer with: all but a route or method that does not exist.
+fn scene_route_codes() -> impl Iterator<Item = ProblemCode> {
+    ProblemCode::ALL
+        .iter()
+        .copied()
+        .filter(|c| c.class() != ErrorClass::NoSuchRoute)
+}
+
+fn error_responses() -> Vec<(String, utoipa::openapi::Response)> {
+    let mut statuses: Vec<u16> = scene_route_codes().map(ProblemCode::status).collect();
+    statuses.sort_unstable();
+    statuses.dedup();
+    statuses
+        .into_iter()
+        .map(|status| {
+            let codes: Vec<String> = scene_route_codes()
+                .filter(|c| c.status() == status)
+                .map(|c| format!("`{c}`: {}", c.title()))
+                .collect();
+            let content = ContentBuilder::new()
+                .schema(Some(Ref::from_schema_name("Problem")))
+                .build();
+            let response = ResponseBuilder::new()
+                .description(codes.join("; "))
+                .content("application/problem+json", content)
+                .build();
+            (status.to_string(), response)
+        })
+        .collect()
+}
+
+fn problem_schema() -> utoipa::openapi::schema::Object {
+    let string = |description: &str| {
+        ObjectBuilder::new()
+            .schema_type(Type::String)
+            .description(Some(description))
+    };
+    let codes: Vec<String> = ProblemCode::ALL
+        .iter()
+        .map(|c| format!("`{c}` ({}): {}", c.status(), c.title()))
+        .collect();
+    let code = string(&format!("The problem code: {}.", codes.join("; ")))
+        .enum_values(Some(ProblemCode::ALL.iter().map(|c| c.code())));
+    let status = ObjectBuilder::new().schema_type(Type::Integer);
+    ObjectBuilder::new()
+        .schema_type(Type::Object)
+        .description(Some("An error, as application/problem+json (RFC 9457)."))
+        .property(
+            "type",
+            string("`/problems/<code>` (`about:blank` for not-found and method-not-allowed)"),
+        )
+        .property("title", string("Fixed per code"))
+        .property("status", status)
+        .property("detail", string("What happened in this request"))
+        .property("code", code)
+        .required("type")
+        .required("title")
+        .required("status")
+        .required("detail")
+        .required("code")
+        .build()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rows of the error table in docs/http-api.md: `(code, status, title)`.
+    fn documented_codes() -> Vec<(String, u16, String)> {
+        let page = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/http-api.md"));
+        let mut lines = page
+            .lines()
+            .skip_while(|l| *l != "| code | status | title |");
+        assert!(lines.next().is_some(), "the error table's header");
+        lines
+            .skip(1)
+            .take_while(|l| l.starts_with('|'))
+            .map(|row| {
+                let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
+                let [code, status, title] = cells[..] else {
+                    panic!("not three cells: {row}");
+                };
+                let status = status.parse().unwrap_or_else(|_| panic!("{row}"));
+                (code.trim_matches('`').to_owned(), status, title.to_owned())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_documented_error_table_is_the_set_of_codes() {
+        let documented = documented_codes();
+        let expected: Vec<(String, u16, String)> = ProblemCode::ALL
+            .iter()
+            .map(|c| (c.code().to_owned(), c.status(), c.title().to_owned()))
+            .collect();
+        for row in &documented {
+            assert!(expected.contains(row), "documented but not so: {row:?}");
+        }
+        for row in &expected {
+            assert!(documented.contains(row), "not documented: {row:?}");
+        }
+        assert_eq!(documented.len(), expected.len(), "a code documented twice");
+    }
+
+    #[test]
+    fn a_problem_serializes_as_before() {
+        let problem = Problem::new(ProblemCode::MissingFile, "nothing");
+        assert_eq!(
+            serde_json::to_string(&problem).unwrap(),
+            r#"{"type":"/problems/missing-file","title":"The request carries no scene","status":400,"detail":"nothing","code":"missing-file"}"#
+        );
+        let problem = Problem::from(SceneError::new(ProblemCode::InternalEdit, "x"));
+        assert_eq!(
+            (problem.status, problem.code.code()),
+            (500, "internal-edit")
+        );
+    }
+
+    #[tokio::test]
+    async fn route_problems_keep_about_blank() {
+        let problem = not_found().await;
+        assert_eq!(
+            serde_json::to_string(&problem).unwrap(),
+            r#"{"type":"about:blank","title":"Not Found","status":404,"detail":"no such route; see /docs","code":"not-found"}"#
+        );
+        let problem = method_not_allowed().await;
+        assert_eq!(
+            (problem.type_uri.as_str(), problem.title),
+            ("about:blank", "Method Not Allowed")
+        );
+    }
+
+    #[test]
+    fn the_openapi_document_lists_every_code() {
+        use utoipa::OpenApi;
+        let api = serde_json::to_value(crate::server::routes::ApiDoc::openapi()).unwrap();
+        let codes = &api["components"]["schemas"]["Problem"]["properties"]["code"]["enum"];
+        let slugs: Vec<&str> = ProblemCode::ALL.iter().map(|c| c.code()).collect();
+        assert_eq!(codes, &serde_json::json!(slugs));
+        let responses = &api["paths"]["/v1/tangents"]["post"]["responses"];
+        let described = responses["422"]["description"].as_str().unwrap_or_default();
+        assert!(described.contains("`draco-required`"), "{responses}");
+        assert!(
+            responses["404"].is_null(),
+            "not-found is no answer of a scene route"
+        );
     }
 }

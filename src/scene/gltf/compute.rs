@@ -4,7 +4,7 @@
 
 use super::accessor::{self, AccessorError, ComponentType};
 use super::plan::{GeometryKey, Topology};
-use crate::scene::error::SceneError;
+use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::{Audit, TallyReport};
 use tspace_json::Node;
 use tspace_tangent::{self as tangent, CoreError, MeshInput, Options, Tally, Tangents};
@@ -77,18 +77,18 @@ pub fn accessor_error(error: AccessorError) -> SceneError {
     }
     match cause {
         AccessorError::TooManyElements { .. } => {
-            SceneError::too_large("too-many-vertices", error.to_string())
+            SceneError::new(ProblemCode::TooManyVertices, error.to_string())
         }
-        _ => SceneError::malformed("invalid-accessor", error.to_string()),
+        _ => SceneError::new(ProblemCode::InvalidAccessor, error.to_string()),
     }
 }
 
 fn core_error(path: &str, error: CoreError) -> SceneError {
     match error {
         CoreError::TooLarge { .. } => {
-            SceneError::too_large("too-many-vertices", format!("{path}: {error}"))
+            SceneError::new(ProblemCode::TooManyVertices, format!("{path}: {error}"))
         }
-        _ => SceneError::malformed("invalid-primitive", format!("{path}: {error}")),
+        _ => SceneError::new(ProblemCode::InvalidPrimitive, format!("{path}: {error}")),
     }
 }
 
@@ -195,8 +195,8 @@ pub fn compute(
         // A strip's leftover vertices and a list's stray ones are not triangles.
         indices.truncate(indices.len() / 3 * 3);
     } else if key.topology == Topology::Triangles && geometry.positions.len() % 3 != 0 {
-        return Err(SceneError::malformed(
-            "invalid-primitive",
+        return Err(SceneError::new(
+            ProblemCode::InvalidPrimitive,
             format!(
                 "{path}: {} vertices without indices do not make whole triangles",
                 geometry.positions.len()
@@ -223,8 +223,8 @@ pub fn compute(
         let count = geometry.positions.len();
         for (name, delta) in [("POSITION", &dp), ("NORMAL", &dn)] {
             if delta.as_ref().is_some_and(|d| d.len() != count) {
-                return Err(SceneError::malformed(
-                    "invalid-primitive",
+                return Err(SceneError::new(
+                    ProblemCode::InvalidPrimitive,
                     format!("{path}.targets[{t}].{name} does not have one element per vertex"),
                 ));
             }

@@ -6,7 +6,7 @@
 //! `Resources`, and an upload's resources are the parts it carried.
 
 use super::glb::{self, Chunk};
-use crate::scene::error::SceneError;
+use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::uri::{self, PartSet, UriError};
 use std::borrow::Cow;
 use tspace_json::{Document, Node};
@@ -92,14 +92,16 @@ pub fn load<'a>(
     limits: &LoadLimits,
 ) -> Result<Loaded<'a>, SceneError> {
     let (container, json, bin, other_chunks) = if glb::is_glb(bytes) {
-        let parsed = glb::parse(bytes)
-            .map_err(|e| SceneError::malformed("malformed-glb", format!("not a valid GLB: {e}")))?;
+        let parsed = glb::parse(bytes).map_err(|e| {
+            SceneError::new(ProblemCode::MalformedGlb, format!("not a valid GLB: {e}"))
+        })?;
         (Container::Glb, parsed.json, parsed.bin, parsed.other_chunks)
     } else {
         (Container::Json, bytes, None, Vec::new())
     };
-    let doc = Document::parse(json)
-        .map_err(|e| SceneError::malformed("malformed-json", format!("the glTF JSON is {e}")))?;
+    let doc = Document::parse(json).map_err(|e| {
+        SceneError::new(ProblemCode::MalformedJson, format!("the glTF JSON is {e}"))
+    })?;
     check_asset(doc.root())?;
     let mut buffers = load_buffers(doc.root(), container, bin, resources, limits)?;
     decode_meshopt(doc.root(), &mut buffers, limits)?;
@@ -113,8 +115,8 @@ pub fn load<'a>(
 
 fn check_asset(root: &Node) -> Result<(), SceneError> {
     if root.as_object().is_none() {
-        return Err(SceneError::malformed(
-            "malformed-gltf",
+        return Err(SceneError::new(
+            ProblemCode::MalformedGltf,
             format!("a glTF document is a JSON object, not {}", root.kind_name()),
         ));
     }
@@ -123,13 +125,13 @@ fn check_asset(root: &Node) -> Result<(), SceneError> {
         .and_then(|a| a.get("version"))
         .and_then(Node::as_str);
     match version {
-        None => Err(SceneError::malformed(
-            "malformed-gltf",
+        None => Err(SceneError::new(
+            ProblemCode::MalformedGltf,
             "asset.version is missing: this is not a glTF 2.0 document",
         )),
         Some(v) if v == "2.0" || v.starts_with("2.") => Ok(()),
-        Some(v) => Err(SceneError::unprocessable(
-            "unsupported-version",
+        Some(v) => Err(SceneError::new(
+            ProblemCode::UnsupportedVersion,
             format!("asset.version is {v:?}; tspace reads glTF 2.x"),
         )),
     }
@@ -146,7 +148,10 @@ fn load_buffers<'a>(
         return Ok(Vec::new());
     };
     let list = list.as_array().ok_or_else(|| {
-        SceneError::malformed("malformed-gltf", "buffers must be an array of objects")
+        SceneError::new(
+            ProblemCode::MalformedGltf,
+            "buffers must be an array of objects",
+        )
     })?;
     let mut buffers = Vec::with_capacity(list.len());
     for (index, buffer) in list.iter().enumerate() {
@@ -157,14 +162,14 @@ fn load_buffers<'a>(
             .and_then(|n| usize::try_from(n).ok())
             .filter(|&n| n >= 1)
             .ok_or_else(|| {
-                SceneError::malformed(
-                    "malformed-gltf",
+                SceneError::new(
+                    ProblemCode::MalformedGltf,
                     format!("{path}.byteLength must be an integer of at least 1"),
                 )
             })?;
         if declared > limits.max_buffer_bytes {
-            return Err(SceneError::too_large(
-                "buffer-too-large",
+            return Err(SceneError::new(
+                ProblemCode::BufferTooLarge,
                 format!(
                     "{path} declares {declared} bytes; the limit is {}",
                     limits.max_buffer_bytes
@@ -174,14 +179,17 @@ fn load_buffers<'a>(
         let uri = match buffer.get("uri") {
             None => None,
             Some(u) => Some(u.as_str().ok_or_else(|| {
-                SceneError::malformed("malformed-gltf", format!("{path}.uri must be a string"))
+                SceneError::new(
+                    ProblemCode::MalformedGltf,
+                    format!("{path}.uri must be a string"),
+                )
             })?),
         };
         let (bytes, source): (Cow<'a, [u8]>, BufferSource) = match uri {
             None if index == 0 && container == Container::Glb => {
                 let bin = bin.ok_or_else(|| {
-                    SceneError::malformed(
-                        "malformed-glb",
+                    SceneError::new(
+                        ProblemCode::MalformedGlb,
                         "buffers[0] has no uri, so it is the GLB's BIN chunk, but the file has none",
                     )
                 })?;
@@ -191,7 +199,7 @@ fn load_buffers<'a>(
             Some(text) => match uri::decode_data_uri(text) {
                 Some(data) => {
                     let data = data.map_err(|e| {
-                        SceneError::malformed("malformed-uri", format!("{path}.uri: {e}"))
+                        SceneError::new(ProblemCode::MalformedUri, format!("{path}.uri: {e}"))
                     })?;
                     (Cow::Owned(data.bytes), BufferSource::DataUri)
                 }
@@ -206,8 +214,8 @@ fn load_buffers<'a>(
         let bytes = match source {
             BufferSource::Empty => bytes,
             _ if bytes.len() < declared => {
-                return Err(SceneError::malformed(
-                    "buffer-too-short",
+                return Err(SceneError::new(
+                    ProblemCode::BufferTooShort,
                     format!(
                         "{path} declares {declared} bytes but its data has only {}",
                         bytes.len()
@@ -236,8 +244,8 @@ fn usize_member(node: &Node, key: &str, path: &str) -> Result<Option<usize>, Sce
             .and_then(|n| usize::try_from(n).ok())
             .map(Some)
             .ok_or_else(|| {
-                SceneError::malformed(
-                    "malformed-gltf",
+                SceneError::new(
+                    ProblemCode::MalformedGltf,
                     format!("{path}.{key} must be a non-negative integer"),
                 )
             }),
@@ -279,7 +287,10 @@ fn decode_meshopt(
         }
         let required = |key: &str| -> Result<usize, SceneError> {
             usize_member(ext, key, &ext_path)?.ok_or_else(|| {
-                SceneError::malformed("malformed-gltf", format!("{ext_path}.{key} is missing"))
+                SceneError::new(
+                    ProblemCode::MalformedGltf,
+                    format!("{ext_path}.{key} is missing"),
+                )
             })
         };
         let source = required("buffer")?;
@@ -288,12 +299,13 @@ fn decode_meshopt(
         let stride = required("byteStride")?;
         let count = required("count")?;
         let name = |key: &str| ext.get(key).and_then(Node::as_str);
-        let mode = tspace_meshopt::Mode::from_name(name("mode").unwrap_or(""))
-            .map_err(|e| SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}")))?;
+        let mode = tspace_meshopt::Mode::from_name(name("mode").unwrap_or("")).map_err(|e| {
+            SceneError::new(ProblemCode::MalformedMeshopt, format!("{ext_path}: {e}"))
+        })?;
         let filter = match name("filter") {
             None => tspace_meshopt::Filter::None,
             Some(f) => tspace_meshopt::Filter::from_name(f).map_err(|e| {
-                SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}"))
+                SceneError::new(ProblemCode::MalformedMeshopt, format!("{ext_path}: {e}"))
             })?,
         };
         let data = buffers
@@ -301,8 +313,8 @@ fn decode_meshopt(
             .filter(|b| b.source != BufferSource::Empty)
             .and_then(|b| b.bytes.get(offset..offset.checked_add(length)?))
             .ok_or_else(|| {
-                SceneError::malformed(
-                    "malformed-meshopt",
+                SceneError::new(
+                    ProblemCode::MalformedMeshopt,
                     format!("{ext_path}: the compressed bytes lie outside buffers[{source}]"),
                 )
             })?;
@@ -316,7 +328,7 @@ fn decode_meshopt(
             },
             limits.max_buffer_bytes,
         )
-        .map_err(|e| SceneError::malformed("malformed-meshopt", format!("{ext_path}: {e}")))?;
+        .map_err(|e| SceneError::new(ProblemCode::MalformedMeshopt, format!("{ext_path}: {e}")))?;
         let at = usize_member(view, "byteOffset", &path)?.unwrap_or(0);
         decoded.push((target, at, bytes));
     }
@@ -329,8 +341,8 @@ fn decode_meshopt(
             .checked_add(bytes.len())
             .filter(|&end| end <= limits.max_buffer_bytes && end <= reach)
             .ok_or_else(|| {
-                SceneError::too_large(
-                    "buffer-too-large",
+                SceneError::new(
+                    ProblemCode::BufferTooLarge,
                     format!("a decoded EXT_meshopt_compression view of buffers[{target}] ends past the limit"),
                 )
             })?;
@@ -351,12 +363,12 @@ fn decode_meshopt(
 pub fn resource_error(path: &str, error: UriError) -> SceneError {
     match error {
         UriError::MissingPart { .. } => {
-            SceneError::unprocessable("missing-resource", format!("{path}.uri: {error}"))
+            SceneError::new(ProblemCode::MissingResource, format!("{path}.uri: {error}"))
         }
         UriError::Refused { .. } => {
-            SceneError::unprocessable("refused-uri", format!("{path}.uri: {error}"))
+            SceneError::new(ProblemCode::RefusedUri, format!("{path}.uri: {error}"))
         }
-        _ => SceneError::malformed("malformed-uri", format!("{path}.uri: {error}")),
+        _ => SceneError::new(ProblemCode::MalformedUri, format!("{path}.uri: {error}")),
     }
 }
 
