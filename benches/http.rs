@@ -10,7 +10,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 use tspace::config::ServerConfig;
-use tspace::scene::gltf::SceneOptions;
+use tspace::scene::SceneOptions;
 use tspace::scene::input::{InputKind, process};
 use tspace::scene::uri::PartSet;
 

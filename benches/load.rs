@@ -19,18 +19,12 @@
 //! every phase alike, so capacity is "with this generator on this machine". Results go to
 //! `bench-results/load.csv` (phases) and `bench-results/load-rss.csv` (RSS over time).
 
-#[allow(dead_code)]
-#[path = "../tests/common/process.rs"]
-mod process;
-#[allow(dead_code)]
-#[path = "../tests/common/scene.rs"]
-mod scene;
-
-use process::ServerProcess;
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
+use tspace_testkit::glb_builder as scene;
+use tspace_testkit::process::ServerProcess;
 
 fn corpus_scene() -> (String, Vec<u8>) {
     let helmet = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -206,7 +200,10 @@ fn main() {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let queue = 16;
     let in_flight = 4 * (cores + queue);
-    let server = ServerProcess::start(&["--queue", &queue.to_string()]);
+    let server = ServerProcess::start(
+        env!("CARGO_BIN_EXE_tspace"),
+        &["--queue", &queue.to_string()],
+    );
     let idle_rss = server.memory("VmRSS");
     let url = format!("http://{}/v1/tangents", server.addr);
     let body = bytes::Bytes::from(bytes.clone());

@@ -21,8 +21,9 @@
 //! and the tables show medians. A first, untimed run of each contender per mesh warms caches
 //! and is the one whose heap use and error are measured.
 
-mod shapes;
 mod support;
+
+use tspace_testkit::shapes;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

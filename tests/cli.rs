@@ -1,15 +1,13 @@
 //! The `tspace` binary's `process`, `analyze` and `healthcheck` commands, run as a user would,
 //! on copies of the fixtures in temporary folders.
 
-#[allow(unused_imports)]
-mod common;
-
-use common::validator;
 use serde_json::Value;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use tspace::scene::gltf::glb;
+#[allow(unused_imports)]
+use tspace_testkit::validator;
 
 /// A temporary folder, removed when dropped.
 struct TempDir(PathBuf);

@@ -3,14 +3,13 @@
 //! the input, it must accept the output with no new errors or warnings; where it does not, tspace
 //! must still answer with a result or a clean error, never a panic.
 
-#[allow(unused_imports)]
-mod common;
-
-use common::validator::{self, Severity, ValidatorReport};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use tspace::scene::gltf::{SceneOptions, process};
+use tspace::scene::SceneOptions;
+use tspace::scene::gltf::process;
 use tspace::scene::uri::PartSet;
+#[allow(unused_imports)]
+use tspace_testkit::validator::{self, Severity, ValidatorReport};
 
 fn corpus() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");

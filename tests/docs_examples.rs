@@ -12,7 +12,7 @@
 //! of `fixtures/` (a copy, not a symbolic link, so that no example can write into the real one).
 //! A missing fixture is then missing from the copy too, and curl fails on it.
 //!
-//! Self-contained: std only, no `tests/common`.
+//! Self-contained: std only, no test kit.
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};

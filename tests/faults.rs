@@ -1,12 +1,10 @@
 //! Faults a real process must survive: SIGTERM while it is busy. (Clients that vanish, slow
 //! uploads and overload are in tests/http.rs, against a server in the test's own process.)
 
-#[allow(unused_imports)]
-mod common;
-
-use common::process::{ServerProcess, status_line};
-use common::scene::grid;
 use std::time::{Duration, Instant};
+use tspace_testkit::glb_builder::grid;
+#[allow(unused_imports)]
+use tspace_testkit::process::{ServerProcess, status_line};
 
 /// The jobs gauges (queued, running) from /metrics.
 fn jobs(server: &ServerProcess) -> Option<(u64, u64)> {
@@ -33,7 +31,10 @@ fn jobs(server: &ServerProcess) -> Option<(u64, u64)> {
 #[cfg(unix)]
 #[test]
 fn sigterm_under_load_finishes_accepted_work_and_refuses_new() {
-    let server = ServerProcess::start(&["--concurrency", "1", "--queue", "8"]);
+    let server = ServerProcess::start(
+        env!("CARGO_BIN_EXE_tspace"),
+        &["--concurrency", "1", "--queue", "8"],
+    );
     // Big enough that the five jobs queue up behind the one worker before the first finishes.
     let body = grid(400);
     let accepted = 5;

@@ -1,5 +1,5 @@
 //! Replays the fuzzers' saved inputs through the same functions the fuzz targets call
-//! (`tspace::fuzz_targets`), on stable, as part of the normal test suite: every file in
+//! (`tspace_testkit::fuzz`), on stable, as part of the normal test suite: every file in
 //! `fuzz/seeds/<target>/`, `fuzz/corpus/<target>/` and `fuzz/regressions/<target>/`. A panic in
 //! any of them fails the test, naming the file.
 //!
@@ -7,15 +7,13 @@
 //! ignored test `make_seeds` (see fuzz/README.md).
 
 #[allow(unused_imports)]
-mod common;
-
 use serde_json::{Value, json};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tspace::fuzz_targets;
 use tspace::scene::gltf::glb;
 use tspace::scene::gltf::write::base64;
+use tspace_testkit::fuzz as fuzz_targets;
 
 type Target = fn(&[u8]);
 
@@ -122,7 +120,7 @@ fn packed(gltf: &[u8], bin: &[u8]) -> (Vec<u8>, Vec<u8>) {
 
 /// A quad with normals and UVs, compressed with EXT_meshopt_compression, as a GLB.
 fn meshopt_quad() -> Vec<u8> {
-    common::scene::meshopt_quad()
+    tspace_testkit::glb_builder::meshopt_quad()
 }
 
 /// A 1x1 PNG.
@@ -163,7 +161,7 @@ fn external_quad() -> (Vec<u8>, Vec<u8>, Vec<u8>) {
     (serde_json::to_vec(&doc).unwrap(), positions, rest)
 }
 
-/// Compact core meshes (see `tspace::fuzz_targets::core`): byte 0 vertex count, byte 1 flags,
+/// Compact core meshes (see `tspace_testkit::fuzz::core`): byte 0 vertex count, byte 1 flags,
 /// byte 2 crease, then 8 one-byte floats per vertex (1.0 is 8), then indices.
 fn core_seeds() -> Vec<(&'static str, Vec<u8>)> {
     let quad: [[i8; 8]; 4] = [

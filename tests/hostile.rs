@@ -4,15 +4,13 @@
 //! opened because an upload named it.
 
 #[allow(unused_imports)]
-mod common;
+use tspace_testkit::fixture;
 
-use common::fixture;
-
-use common::scene::{Builder, grid, normal_mapped, texture_stub};
 use reqwest::multipart::{Form, Part};
 use serde_json::{Value, json};
 use std::process::Command;
 use tspace::config::ServerConfig;
+use tspace_testkit::glb_builder::{Builder, grid, normal_mapped, texture_stub};
 
 /// How an input is sent.
 enum Body {
@@ -299,16 +297,19 @@ fn every_hostile_file_gets_exit_code_3_or_0_on_the_command_line() {
 #[cfg(target_os = "linux")]
 #[test]
 fn peak_memory_stays_bounded_by_the_body_size() {
-    use common::process::{ServerProcess, status_line};
+    use tspace_testkit::process::{ServerProcess, status_line};
     const LIMIT: usize = 24 << 20;
-    let server = ServerProcess::start(&[
-        "--concurrency",
-        "2",
-        "--queue",
-        "2",
-        "--body-limit",
-        &LIMIT.to_string(),
-    ]);
+    let server = ServerProcess::start(
+        env!("CARGO_BIN_EXE_tspace"),
+        &[
+            "--concurrency",
+            "2",
+            "--queue",
+            "2",
+            "--body-limit",
+            &LIMIT.to_string(),
+        ],
+    );
     let post = |body: &[u8], content_type: &str| -> String {
         status_line(&server.post("/v1/tangents", body, content_type))
     };

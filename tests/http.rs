@@ -1,16 +1,14 @@
 //! The HTTP service, started for real on an ephemeral loopback port and called with reqwest.
 
 #[allow(unused_imports)]
-mod common;
+use tspace_testkit::fixture;
 
-use common::fixture;
-
-use common::scene::grid;
 use reqwest::multipart::{Form, Part};
 use serde_json::{Value, json};
 use std::time::Duration;
 use tspace::config::ServerConfig;
 use tspace::server::{Running, start};
+use tspace_testkit::glb_builder::grid;
 
 async fn server(config: ServerConfig) -> (Running, String) {
     let running = start(config).await.expect("server starts");
@@ -667,5 +665,120 @@ async fn clients_that_vanish_leave_nothing_behind() {
     assert!(settled, "jobs still counted: {:?}", gauges(&base).await);
     let response = post_tangents(&base, grid(4)).await;
     assert_eq!(response.status(), 200);
+    running.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_problem_code_has_a_page() {
+    use tspace::scene::error::ProblemCode;
+    let (running, base) = server(ServerConfig::local()).await;
+    let http = client();
+    let page = |slug: String| http.get(format!("{base}/problems/{slug}")).send();
+    for code in ProblemCode::ALL {
+        let response = page(code.to_string()).await.unwrap();
+        assert_eq!(response.status(), 200, "{code}");
+        let expected = format!("{code} (HTTP {}): {}.\n", code.status(), code.title());
+        assert_eq!(response.text().await.unwrap(), expected);
+    }
+    // The three that once had no page.
+    for (slug, line) in [
+        ("not-found", "not-found (HTTP 404): Not Found.\n"),
+        (
+            "method-not-allowed",
+            "method-not-allowed (HTTP 405): Method Not Allowed.\n",
+        ),
+        (
+            "output-too-large",
+            "output-too-large (HTTP 413): The output would be over the format's size limit.\n",
+        ),
+    ] {
+        let response = page(slug.to_owned()).await.unwrap();
+        assert_eq!(response.status(), 200, "{slug}");
+        assert_eq!(response.text().await.unwrap(), line);
+    }
+    let response = page("no-such-code".to_owned()).await.unwrap();
+    assert_eq!(response.status(), 404);
+    running.shutdown().await.unwrap();
+}
+
+/// The stem of the `multipart/mixed` boundary, as a delimiter line and a close delimiter.
+const BOUNDARY_LINES: &[u8] =
+    b"\r\n--tspace-report-and-scene-7c1f3a\r\n\r\n--tspace-report-and-scene-7c1f3a--\r\n";
+
+/// A GLB whose BIN chunk holds [`BOUNDARY_LINES`] in a buffer view nothing uses: the scene still
+/// processes, and its output carries those bytes.
+fn glb_holding_the_boundary() -> Vec<u8> {
+    use tspace::scene::gltf::glb;
+    let source = grid(4);
+    let parsed = glb::parse(&source).unwrap();
+    let mut json: Value = serde_json::from_slice(parsed.json).unwrap();
+    let mut bin = parsed.bin.unwrap().to_vec();
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let offset = bin.len();
+    bin.extend_from_slice(BOUNDARY_LINES);
+    let view = json!({"buffer": 0, "byteOffset": offset, "byteLength": BOUNDARY_LINES.len()});
+    json["bufferViews"].as_array_mut().unwrap().push(view);
+    json["buffers"][0]["byteLength"] = json!(bin.len());
+    glb::write(&serde_json::to_vec(&json).unwrap(), Some(&bin), &[]).unwrap()
+}
+
+/// The parts of a `multipart/mixed` answer as `(name, bytes)`, read by multer (through axum)
+/// with the boundary the answer declares. multer reads only `multipart/form-data`, whose parts
+/// are delimited the same way, so the body goes to it under that type.
+async fn mixed_parts(content_type: &str, body: bytes::Bytes) -> Vec<(String, bytes::Bytes)> {
+    use axum::extract::{FromRequest, Multipart};
+    let boundary = content_type
+        .strip_prefix("multipart/mixed; boundary=")
+        .unwrap_or_else(|| panic!("{content_type}"));
+    let request = axum::http::Request::builder()
+        .header(
+            "content-type",
+            format!("multipart/form-data; boundary={boundary}"),
+        )
+        .body(axum::body::Body::from(body))
+        .unwrap();
+    let mut multipart = Multipart::from_request(request, &()).await.unwrap();
+    let mut parts = Vec::new();
+    while let Some(field) = multipart.next_field().await.unwrap() {
+        let name = field.name().unwrap_or_default().to_owned();
+        parts.push((name, field.bytes().await.unwrap()));
+    }
+    parts
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_scene_holding_the_boundary_stays_one_part() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let scene = glb_holding_the_boundary();
+    let post = |accept: &'static str| {
+        client()
+            .post(format!("{base}/v1/tangents"))
+            .header("content-type", "model/gltf-binary")
+            .header("accept", accept)
+            .body(scene.clone())
+            .send()
+    };
+    let response = post("model/gltf-binary").await.unwrap();
+    assert_eq!(response.status(), 200);
+    let plain = response.bytes().await.unwrap();
+    let holds = |bytes: &[u8]| {
+        bytes
+            .windows(BOUNDARY_LINES.len())
+            .any(|w| w == BOUNDARY_LINES)
+    };
+    assert!(holds(&plain), "the unused view is written back");
+
+    let response = post("multipart/mixed").await.unwrap();
+    assert_eq!(response.status(), 200);
+    let content_type = response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    let parts = mixed_parts(&content_type, response.bytes().await.unwrap()).await;
+    let names: Vec<&str> = parts.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(names, ["report", "scene"]);
+    let report: Value = serde_json::from_slice(&parts[0].1).unwrap();
+    assert_eq!(report["summary"]["generated"], json!(1));
+    assert!(parts[1].1 == plain, "the scene part is the whole scene");
     running.shutdown().await.unwrap();
 }

@@ -6,16 +6,15 @@
 
 // common/mod.rs re-exports helpers this binary does not use.
 #[allow(unused_imports)]
-mod common;
-
 use std::path::Path;
 
-use common::validator::{ValidatorReport, validate};
+use tspace::scene::SceneOptions;
 use tspace::scene::gltf::glb;
-use tspace::scene::gltf::{SceneOptions, process};
+use tspace::scene::gltf::process;
 use tspace::scene::obj::{Limits, parse_mtl, parse_obj};
 use tspace::scene::obj_gltf::{ConvertLimits, Converted, obj_to_gltf};
 use tspace::scene::uri::PartSet;
+use tspace_testkit::validator::{ValidatorReport, validate};
 
 /// A 4x4 red RGB PNG (stored with correct CRCs, so the validator reads its header).
 const PNG: &[u8] =

@@ -7,14 +7,12 @@
 //!
 //! Run with `cargo test --release --test oracle -- --nocapture` to see the per-mesh summaries.
 
-mod common;
-
-use common::meshes::{Primitive, load_gltf, load_obj};
-use common::{angle_degrees, reference_is_valid, reference_tangents};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tspace_tangent::diagnostics::SAMPLE_SIZE;
 use tspace_tangent::{FallbackCounts, MeshInput, Options, UvOrigin, generate};
+use tspace_testkit::meshes::{Primitive, load_gltf, load_obj};
+use tspace_testkit::{angle_degrees, reference_is_valid, reference_tangents};
 
 fn fixtures_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures")

@@ -1,6 +1,6 @@
-mod common;
-use common::*;
 use tspace_tangent::{MeshInput, Options, UvOrigin, generate};
+use tspace_testkit::shapes;
+use tspace_testkit::*;
 
 fn compare(
     name: &str,

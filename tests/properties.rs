@@ -6,7 +6,7 @@
 //! - normals given: the input normal of the corner's vertex, normalized, when it is finite and
 //!   not zero; otherwise the face normal of the corner's triangle, `(b - a) × (c - a)` computed in
 //!   f64 from the f32 positions, when that is finite and not zero; otherwise +Z (see
-//!   `effective_normal` in src/tangent/fallback.rs);
+//!   `effective_normal` in crates/tspace-tangent/src/fallback.rs);
 //! - normals generated: the generated normal of the corner's output vertex, which itself must be
 //!   finite and unit.
 //!
@@ -15,62 +15,19 @@
 //! finite, unit, `w` = ±1, orthogonal to their normal normalized when that is finite and not zero,
 //! otherwise to +Z.
 
-#[path = "common/random_mesh.rs"]
-mod random_mesh;
-
 use proptest::prelude::*;
 use proptest::sample::Index;
-use random_mesh::{RandomMesh, any_mesh, full_indexed_mesh};
 use std::collections::HashMap;
 use tspace_tangent::diagnostics::SAMPLE_SIZE;
 use tspace_tangent::{
     CoreError, Diagnostics, Method, NormalMode, Options, Tally, Tangents, UvOrigin, Weighting,
     generate,
 };
-
-const UNIT_TOLERANCE: f64 = 1e-5;
-const ORTHOGONAL_TOLERANCE: f64 = 1e-4;
+use tspace_testkit::invariants::{self, PLUS_Z, face_normal, unit64};
+use tspace_testkit::random_mesh::{RandomMesh, any_mesh, full_indexed_mesh};
 
 // ---------------------------------------------------------------------------------------------
 // Reference computations (f64 unless the core's f32 rounding is part of the definition).
-
-fn unit64(v: [f32; 3]) -> Option<[f64; 3]> {
-    if !v.iter().all(|x| x.is_finite()) || v.iter().all(|&x| x == 0.0) {
-        return None;
-    }
-    let v = v.map(f64::from);
-    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    Some(v.map(|x| x / len))
-}
-
-/// The unit face normal `(b - a) × (c - a)`, computed in f64 from the f32 positions; `None` when
-/// it is zero or not finite.
-fn face_normal(p: [[f32; 3]; 3]) -> Option<[f64; 3]> {
-    let [a, b, c] = p.map(|v| v.map(f64::from));
-    let (e1, e2) = (
-        [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-        [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-    );
-    let n = [
-        e1[1] * e2[2] - e1[2] * e2[1],
-        e1[2] * e2[0] - e1[0] * e2[2],
-        e1[0] * e2[1] - e1[1] * e2[0],
-    ];
-    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    (len > 0.0 && len.is_finite()).then(|| n.map(|x| x / len))
-}
-
-const PLUS_Z: [f64; 3] = [0.0, 0.0, 1.0];
-
-/// The normal corner `c`'s tangent must be orthogonal to, when normals were given.
-fn effective_normal(mesh: &RandomMesh, c: usize) -> [f64; 3] {
-    let normals = mesh.normals.as_ref().expect("normals given");
-    if let Some(n) = unit64(normals[mesh.vertex_of_corner(c)]) {
-        return n;
-    }
-    let tri = mesh.triangle_of_corner(c).map(|v| mesh.positions[v]);
-    face_normal(tri).unwrap_or(PLUS_Z)
-}
 
 fn key4(t: &[f32; 4]) -> [u32; 4] {
     t.map(|x| if x == 0.0 { 0 } else { x.to_bits() })
@@ -91,51 +48,9 @@ fn bits3(v: &[[f32; 3]]) -> Vec<[u32; 3]> {
 // ---------------------------------------------------------------------------------------------
 // Checks.
 
-fn check_tangent(t: [f32; 4], normal: [f64; 3], what: &str) -> Result<(), TestCaseError> {
-    prop_assert!(
-        t.iter().all(|x| x.is_finite()),
-        "{what}: tangent {t:?} is not finite"
-    );
-    let v = [t[0], t[1], t[2]].map(f64::from);
-    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    prop_assert!(
-        (len - 1.0).abs() <= UNIT_TOLERANCE,
-        "{what}: tangent {t:?} has length {len}"
-    );
-    let d = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2];
-    prop_assert!(
-        d.abs() <= ORTHOGONAL_TOLERANCE,
-        "{what}: tangent {t:?} has dot {d} with its normal {normal:?}"
-    );
-    prop_assert!(
-        t[3] == 1.0 || t[3] == -1.0,
-        "{what}: tangent {t:?} has w {}",
-        t[3]
-    );
-    Ok(())
-}
-
+/// The shared invariants (`tspace_testkit::invariants`), as proptest failures so they shrink.
 fn check_tally(tally: &Tally, limit: u64, name: &str) -> Result<(), TestCaseError> {
-    prop_assert_eq!(
-        tally.first.len() as u64,
-        tally.count.min(SAMPLE_SIZE as u64),
-        "{}: {:?}",
-        name,
-        tally
-    );
-    prop_assert!(
-        tally.first.windows(2).all(|w| w[0] < w[1]),
-        "{name}: not strictly ascending: {tally:?}"
-    );
-    prop_assert!(
-        tally.first.iter().all(|&i| u64::from(i) < limit),
-        "{name}: index out of range (limit {limit}): {tally:?}"
-    );
-    prop_assert!(
-        tally.count <= limit,
-        "{name}: count over {limit}: {tally:?}"
-    );
-    Ok(())
+    invariants::check_tally(tally, limit, name).map_err(TestCaseError::fail)
 }
 
 /// A generated normal stays within the crease angle of its own face's normal (+Z for a face
@@ -175,94 +90,19 @@ fn check_generated_normal(
 /// Everything that must hold of one successful call.
 fn check_output(mesh: &RandomMesh, options: &Options, out: &Tangents) -> Result<(), TestCaseError> {
     let corner_count = mesh.corner_count();
-    let vertex_count = mesh.positions.len();
     let split = &out.split;
     let output_count = split.source_vertex.len();
 
-    // Shapes.
+    // Shapes, every corner's tangent valid and copying the right input vertex, unused vertices
+    // valid: the invariants the fuzz target checks too. That the per-corner values are
+    // MikkTSpace's is the oracle tests' job.
+    invariants::check_core(&mesh.input(), options, out).map_err(TestCaseError::fail)?;
     prop_assert_eq!(out.corner_tangents().len(), corner_count);
-    prop_assert_eq!(split.indices.len(), corner_count);
-    prop_assert_eq!(split.vertex_tangents.len(), output_count);
-    prop_assert!(
-        split
-            .source_vertex
-            .iter()
-            .all(|&v| (v as usize) < vertex_count),
-        "source vertex out of range"
-    );
-    prop_assert!(
-        split.indices.iter().all(|&v| (v as usize) < output_count),
-        "split index out of range"
-    );
-    match (&mesh.normals, &out.normals) {
-        (Some(_), None) => {
-            prop_assert!(output_count >= vertex_count);
-            prop_assert!(
-                split.source_vertex[..vertex_count]
-                    .iter()
-                    .enumerate()
-                    .all(|(i, &v)| v as usize == i),
-                "the first {vertex_count} source vertices are not the identity"
-            );
-        }
-        (None, Some(normals)) => {
-            prop_assert_eq!(normals.len(), output_count);
-            for (v, n) in normals.iter().enumerate() {
-                let len = n.iter().map(|&x| f64::from(x) * f64::from(x)).sum::<f64>();
-                prop_assert!(
-                    n.iter().all(|x| x.is_finite()) && (len.sqrt() - 1.0).abs() <= UNIT_TOLERANCE,
-                    "generated normal {n:?} of output vertex {v} is not finite and unit"
-                );
-            }
-        }
-        (given, generated) => prop_assert!(
-            false,
-            "normals given: {}, normals returned: {}",
-            given.is_some(),
-            generated.is_some()
-        ),
-    }
-
-    // Every corner (its output vertex's tangent): valid, and copying the right input vertex.
-    // That the per-corner values are MikkTSpace's is the oracle tests' job.
-    let mut used = vec![false; output_count];
-    for c in 0..corner_count {
-        let t = out.corner_tangent(c);
-        let o = split.indices[c] as usize;
-        used[o] = true;
-        let normal = match &out.normals {
-            None => effective_normal(mesh, c),
-            Some(normals) => unit64(normals[o]).unwrap_or(PLUS_Z),
-        };
-        check_tangent(t, normal, &format!("corner {c}"))?;
-        prop_assert_eq!(
-            split.source_vertex[o] as usize,
-            mesh.vertex_of_corner(c),
-            "corner {}: output vertex {} copies the wrong input vertex",
-            c,
-            o
-        );
-        if let Some(normals) = &out.normals {
+    if let Some(normals) = &out.normals {
+        for c in 0..corner_count {
+            let o = split.indices[c] as usize;
             check_generated_normal(mesh, options.normal_mode, c, normals[o])?;
         }
-    }
-
-    // Vertices no triangle uses.
-    for (o, &is_used) in used.iter().enumerate() {
-        if is_used {
-            continue;
-        }
-        prop_assert!(
-            out.normals.is_none() && o < vertex_count,
-            "output vertex {o} is not used by any corner"
-        );
-        let normals = mesh.normals.as_ref().unwrap();
-        let normal = unit64(normals[o]).unwrap_or(PLUS_Z);
-        check_tangent(
-            split.vertex_tangents[o],
-            normal,
-            &format!("unused vertex {o} (normal {:?})", normals[o]),
-        )?;
     }
 
     // Split only where needed.
@@ -1311,7 +1151,7 @@ fn check_unused_vertex(normal: [f32; 3]) {
     }
 }
 
-/// Bug: src/tangent/split.rs gives vertices no triangle uses a tangent from their normal
+/// Bug: crates/tspace-tangent/src/split.rs gives vertices no triangle uses a tangent from their normal
 /// normalized with an f32 `length`, which overflows for |n| above ~1e19: the normal becomes zero
 /// and the tangent (1, 0, 0), parallel to a normal (1e20, 0, 0).
 #[test]
@@ -1328,7 +1168,7 @@ fn regression_unused_vertex_with_tiny_normal() {
     check_unused_vertex([0.0, -1.0e-30, 0.0]);
 }
 
-/// Bug: src/tangent/fallback.rs `unit` (used by `effective_normal`) treats a normal whose largest
+/// Bug: crates/tspace-tangent/src/fallback.rs `unit` (used by `effective_normal`) treats a normal whose largest
 /// component is subnormal as zero (`!largest.is_normal()`), although it is finite and not zero,
 /// so the corner is made orthogonal to the face normal instead: here the tangent is (1, 0, 0)
 /// while the normal points along +X.
@@ -1345,7 +1185,7 @@ fn regression_subnormal_normal_is_a_normal() {
     }
 }
 
-/// Bug: src/tangent/normals.rs `face_normal` normalizes with an f32 `length` whose square goes
+/// Bug: crates/tspace-tangent/src/normals.rs `face_normal` normalizes with an f32 `length` whose square goes
 /// subnormal for cross products below ~1e-19 (triangles with edges around 1e-10, or slivers at
 /// 1e-7 scale), so generated flat normals are not unit (here about 1.006 long).
 #[test]
@@ -1387,7 +1227,7 @@ fn regression_generated_normals_of_tiny_triangles_are_unit() {
     }
 }
 
-/// Bug: src/tangent/diagnostics.rs `analyze` measures normals with an f32 `length`, whose square
+/// Bug: crates/tspace-tangent/src/diagnostics.rs `analyze` measures normals with an f32 `length`, whose square
 /// underflows to 0 below ~1e-19: the normal (0, 0, 1e-30), which the core uses as a valid +Z
 /// normal, is counted in `zero_normals` instead of `non_unit_normals`. Expected: zero_normals
 /// {1}, non_unit_normals {0}; actual: zero_normals {0, 1}, non_unit_normals {}.

@@ -8,12 +8,10 @@
 //! shape there and their tangents may legitimately move. The test asserts validity everywhere and
 //! closeness only where the transformed positions still resolve the mesh (scaling).
 
-#[allow(unused_imports)]
-mod common;
-
-use common::meshes::{Primitive, load_gltf, load_obj};
 use std::path::Path;
 use tspace_tangent::{MeshInput, Options, generate};
+#[allow(unused_imports)]
+use tspace_testkit::meshes::{Primitive, load_gltf, load_obj};
 
 const FIXTURES: &[&str] = &[
     "NormalTangentMirrorTest/NormalTangentMirrorTest.gltf",

@@ -2,16 +2,14 @@
 //! reader (the `gltf` crate), the Khronos glTF-Validator where it is installed, and a structural
 //! diff of the JSON against the input.
 
-#[allow(unused_imports)]
-mod common;
-
-use common::{assert_valid_output as assert_valid, fixture, glb_json};
 use serde_json::Value;
 use tspace::scene::gltf::load::NoResources;
-use tspace::scene::gltf::write::OutputFormat;
-use tspace::scene::gltf::{Processed, SceneOptions, process};
+use tspace::scene::gltf::process;
 use tspace::scene::uri::PartSet;
+use tspace::scene::{OutputFormat, Processed, SceneOptions};
 use tspace_tangent::Method;
+#[allow(unused_imports)]
+use tspace_testkit::{assert_valid_output as assert_valid, fixture, glb_json};
 
 /// Processes a `.gltf` fixture with its `.bin` supplied as a part.
 fn run_gltf(dir: &str, name: &str, options: SceneOptions) -> Processed {
@@ -326,8 +324,8 @@ fn quantized_and_sparse_primitives_get_tangents_with_the_axis_method() {
 
 // ---- Synthetic scenes: one property each ----
 
-use common::scene::{Builder, normal_mapped, texture_stub};
 use serde_json::json;
+use tspace_testkit::glb_builder::{Builder, normal_mapped, texture_stub};
 
 /// A unit quad in the z = 0 plane, two triangles sharing the 0–2 diagonal.
 const QUAD_POSITIONS: [f32; 12] = [0., 0., 0., 1., 0., 0., 1., 1., 0., 0., 1., 0.];
@@ -728,7 +726,7 @@ fn required_meshopt_compression_is_decoded() {
     // An interleaved quad (position, normal, uv) and its indices, compressed by meshoptimizer.
     let uvs = [0f32, 0., 1., 0., 1., 1., 0., 1.];
     let indices = [0u32, 1, 2, 0, 2, 3];
-    let input = common::scene::meshopt_quad();
+    let input = tspace_testkit::glb_builder::meshopt_quad();
     let done = process_glb(&input, SceneOptions::default());
     assert_eq!(done.report.primitives[0].action, "generated");
     let bytes = done.bytes.unwrap();

@@ -1,13 +1,11 @@
 //! OBJ (+ MTL) in, GLB with tangents out, through the one entry point the server and CLI use.
 
-#[allow(unused_imports)]
-mod common;
-
-use common::{assert_valid_output, fixture, glb_json};
-use tspace::scene::gltf::SceneOptions;
+use tspace::scene::SceneOptions;
 use tspace::scene::input::{InputKind, process};
 use tspace::scene::uri::PartSet;
 use tspace_tangent::Method;
+#[allow(unused_imports)]
+use tspace_testkit::{assert_valid_output, fixture, glb_json};
 
 fn assert_valid(name: &str, bytes: &[u8]) {
     if let Some(report) = assert_valid_output(name, bytes) {

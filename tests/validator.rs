@@ -1,14 +1,12 @@
-//! The Khronos glTF-Validator harness (`tests/common/validator.rs`): the fixtures pass it with a
+//! The Khronos glTF-Validator harness (`tspace_testkit::validator`): the fixtures pass it with a
 //! known baseline, and it does catch broken files. Every test skips (one line on stderr) where
 //! Node.js or npm is missing.
 
 // common/mod.rs re-exports helpers this binary does not use.
 #[allow(unused_imports)]
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::validator::{Severity, ValidatorReport, validate, validate_file};
+use tspace_testkit::validator::{Severity, ValidatorReport, validate, validate_file};
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures")
@@ -36,7 +34,7 @@ const FIXTURES: &[(&str, &[&str])] = &[
 ];
 
 /// An `IO_ERROR` for an image file that is not on disk (the fixtures ship no images).
-fn is_missing_image(m: &common::validator::ValidatorMessage) -> bool {
+fn is_missing_image(m: &tspace_testkit::validator::ValidatorMessage) -> bool {
     m.severity == Severity::Error
         && m.code == "IO_ERROR"
         && m.pointer.as_deref().is_some_and(|p| {

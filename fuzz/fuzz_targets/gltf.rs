@@ -1,2 +1,2 @@
 #![no_main]
-libfuzzer_sys::fuzz_target!(|data: &[u8]| tspace::fuzz_targets::gltf(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| tspace_testkit::fuzz::gltf(data));

@@ -1,14 +1,14 @@
 //! `tspace process` and `tspace analyze`: read files, call the scene layer, write outputs and
 //! reports, and turn every outcome into lines on stderr and an exit code.
 
-use super::outcome::{Failure, Outcome, failure_line, guarded, report_text};
+use super::outcome::{Failure, FailureCode, Outcome, failure_line, guarded, report_text};
 use super::paths::{self, Destination, Found, Input, io_message};
-use super::{AnalyzeArgs, Exit, ProcessArgs, SceneArgs, usage_error};
+use super::{AnalyzeArgs, Exit, ProcessArgs, usage_error};
+use crate::scene::error::ProblemCode;
 use crate::scene::folder::Folder;
-use crate::scene::gltf::write::OutputFormat;
-use crate::scene::gltf::{Processed, SceneOptions};
 use crate::scene::input::{self, InputKind};
 use crate::scene::report::Report;
+use crate::scene::{OutputFormat, Processed, SceneOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::io::{IsTerminal, Write};
@@ -17,35 +17,23 @@ use std::path::{Path, PathBuf};
 /// The largest file read: a main file, or a buffer, image or MTL file it names.
 const MAX_FILE_BYTES: u64 = 1 << 30;
 
-fn scene_options(args: &SceneArgs, format: OutputFormat, write: bool) -> SceneOptions {
-    SceneOptions {
-        method: args.method.into(),
-        overwrite: args.overwrite,
-        all: args.all,
-        format,
-        write,
-        ..SceneOptions::default()
-    }
-}
-
-/// Reads one file and processes it with the files beside it as its resources.
 fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Processed, Failure> {
     let unreadable = |e: std::io::Error| {
         Failure::bad_input(
-            "unreadable-input",
+            FailureCode::UnreadableInput,
             format!("cannot read it: {}", io_message(&e)),
         )
     };
     let metadata = std::fs::metadata(path).map_err(unreadable)?;
     if !metadata.is_file() {
         return Err(Failure::bad_input(
-            "unreadable-input",
+            FailureCode::UnreadableInput,
             "not a file (name the scene file itself)",
         ));
     }
     if metadata.len() > MAX_FILE_BYTES {
         return Err(Failure::bad_input(
-            "too-large",
+            ProblemCode::TooLarge,
             format!(
                 "the file has {} bytes, over the {MAX_FILE_BYTES} byte limit",
                 metadata.len()
@@ -59,7 +47,9 @@ fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Processed, Fa
         .unwrap_or_default();
     let kind = InputKind::from_file_name(&name)
         .or_else(|| InputKind::sniff(&bytes))
-        .ok_or_else(|| Failure::bad_input("unknown-format", "not a GLB, glTF or OBJ file"))?;
+        .ok_or_else(|| {
+            Failure::bad_input(FailureCode::UnknownFormat, "not a GLB, glTF or OBJ file")
+        })?;
     let folder = Folder::of_file(path, MAX_FILE_BYTES);
     Ok(input::process(kind, &bytes, &folder, options)?)
 }
@@ -86,7 +76,7 @@ fn process_one(input: &Input, output: &Path, options: &SceneOptions) -> Result<R
     let bytes = processed.bytes.unwrap_or_default();
     write_atomically(output, &bytes).map_err(|e| Failure {
         exit: Exit::Write,
-        code: "write-failed",
+        code: FailureCode::WriteFailed,
         message: format!("cannot write {}: {}", output.display(), io_message(&e)),
     })?;
     Ok(processed.report)
@@ -134,7 +124,7 @@ pub(crate) fn process(args: ProcessArgs) -> Exit {
         );
     }
     let format: OutputFormat = match (args.format, &args.output) {
-        (Some(format), _) => format.into(),
+        (Some(format), _) => format,
         (None, Some(out))
             if out
                 .extension()
@@ -167,7 +157,7 @@ pub(crate) fn process(args: ProcessArgs) -> Exit {
         return usage_error("process", message);
     }
 
-    let options = scene_options(&args.scene, format, true);
+    let options = args.scene.scene_options(format, true);
     let bar = progress_bar(files.len());
     let outcomes: Vec<Outcome> = plan
         .par_iter()
@@ -185,7 +175,7 @@ pub(crate) fn process(args: ProcessArgs) -> Exit {
             Plan::Fail(path, message) => Outcome {
                 input: path.to_path_buf(),
                 output: None,
-                result: Err(Failure::bad_input("unreadable-input", *message)),
+                result: Err(Failure::bad_input(FailureCode::UnreadableInput, *message)),
             },
         })
         .collect();
@@ -214,9 +204,10 @@ pub(crate) fn process(args: ProcessArgs) -> Exit {
             .and_then(|text| write_atomically(path, format!("{text}\n").as_bytes()));
         if let Err(e) = written {
             eprintln!(
-                "tspace: {}: cannot write the report: {} (write-failed)",
+                "tspace: {}: cannot write the report: {} ({})",
                 path.display(),
-                io_message(&e)
+                io_message(&e),
+                FailureCode::WriteFailed
             );
             exit = exit.worst(Exit::Write);
         }
@@ -232,7 +223,7 @@ pub(crate) fn process(args: ProcessArgs) -> Exit {
 }
 
 pub(crate) fn analyze(args: AnalyzeArgs) -> Exit {
-    let options = scene_options(&args.scene, OutputFormat::Glb, false);
+    let options = args.scene.scene_options(OutputFormat::Glb, false);
     match guarded(|| read_and_process(&args.input, &options)) {
         Ok(processed) => {
             let mut stdout = std::io::stdout().lock();
@@ -242,8 +233,9 @@ pub(crate) fn analyze(args: AnalyzeArgs) -> Exit {
                 Ok(()) => Exit::Ok,
                 Err(e) => {
                     eprintln!(
-                        "tspace: cannot write the report: {} (write-failed)",
-                        io_message(&e)
+                        "tspace: cannot write the report: {} ({})",
+                        io_message(&e),
+                        FailureCode::WriteFailed
                     );
                     Exit::Write
                 }

@@ -9,8 +9,10 @@ mod outcome;
 mod paths;
 
 use crate::config::ServeArgs;
-use crate::scene::gltf::write::OutputFormat;
-use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
+use crate::scene::options::Choices;
+use crate::scene::{OutputFormat, SceneOptions};
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use clap::{Args, CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tspace_tangent::Method;
@@ -77,57 +79,47 @@ Failures are printed one a line, `tspace: <file>: <message> (<code>)`, then one 
     exit_codes!()
 );
 
-/// How tangents are computed (see the README's "Methods").
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum MethodArg {
-    /// MikkTSpace, what normal-map bakers use.
-    #[value(alias = "mikk")]
-    Mikktspace,
-    /// Faster and smooth, but not what bakers use.
-    Fast,
-    /// Needs no texture coordinates (for OBJ files without `vt`).
-    Axis,
-}
-
-impl From<MethodArg> for Method {
-    fn from(m: MethodArg) -> Method {
-        match m {
-            MethodArg::Mikktspace => Method::MikkTSpace,
-            MethodArg::Fast => Method::Fast,
-            MethodArg::Axis => Method::Axis,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum FormatArg {
-    /// Binary glTF, images embedded.
-    Glb,
-    /// glTF JSON with its buffer embedded as a data: URI.
-    Gltf,
-}
-
-impl From<FormatArg> for OutputFormat {
-    fn from(f: FormatArg) -> OutputFormat {
-        match f {
-            FormatArg::Glb => OutputFormat::Glb,
-            FormatArg::Gltf => OutputFormat::GltfEmbedded,
-        }
-    }
+/// The value parser of an option whose values the scene layer names ([`Choices`]): `--help`
+/// lists its names with their help, a name outside them gets clap's usual "invalid value"
+/// error, and the value itself comes from the type's one `FromStr`, the parser the query
+/// string uses too. (A clap `ValueEnum` would need a mirror enum here, since `Method` lives in
+/// the tangent core, and a second list of names to keep in step.)
+fn choice<T: Choices>() -> impl TypedValueParser<Value = T>
+where
+    T::Err: std::error::Error + Send + Sync + 'static,
+{
+    let listed = T::choices()
+        .into_iter()
+        .map(|c| PossibleValue::new(c.name).help(c.help).aliases(c.aliases));
+    PossibleValuesParser::new(listed).try_map(|name| name.parse::<T>())
 }
 
 /// What to do with each scene; shared by `process` and `analyze`.
 #[derive(Clone, Debug, Args)]
 struct SceneArgs {
     /// How tangents are computed.
-    #[arg(long, value_enum, default_value = "mikktspace")]
-    method: MethodArg,
+    #[arg(long, value_parser = choice::<Method>(), default_value = "mikktspace")]
+    method: Method,
     /// Recompute tangents that primitives already have (otherwise they are audited).
     #[arg(long)]
     overwrite: bool,
     /// Give tangents to every triangle primitive, normal map or not.
     #[arg(long)]
     all: bool,
+}
+
+impl SceneArgs {
+    /// The scene layer's options for these arguments.
+    fn scene_options(&self, format: OutputFormat, write: bool) -> SceneOptions {
+        SceneOptions {
+            method: self.method,
+            overwrite: self.overwrite,
+            all: self.all,
+            format,
+            write,
+            ..SceneOptions::default()
+        }
+    }
 }
 
 #[derive(Debug, Args)]
@@ -153,8 +145,8 @@ struct ProcessArgs {
     #[command(flatten)]
     scene: SceneArgs,
     /// Output format [default: glb, or gltf when -o names a .gltf file].
-    #[arg(long, value_enum)]
-    format: Option<FormatArg>,
+    #[arg(long, value_parser = choice::<OutputFormat>())]
+    format: Option<OutputFormat>,
 }
 
 #[derive(Debug, Args)]

@@ -1,6 +1,6 @@
 //! Which files a `process` run reads, and where each output goes.
 
-use crate::scene::gltf::write::OutputFormat;
+use crate::scene::OutputFormat;
 use std::collections::{HashMap, HashSet};
 use std::ffi::OsString;
 use std::path::{Component, Path, PathBuf};

@@ -8,12 +8,13 @@
 //! other way to say what it wants. Groups whose MTL material has no normal map are skipped, as in
 //! glTF, unless `all` is set.
 
-use super::error::SceneError;
+use super::error::{ProblemCode, SceneError};
 use super::gltf::load::{NoResources, Resources};
-use super::gltf::{self, Processed, SceneOptions, glb};
+use super::gltf::{self, glb};
 use super::obj::{self, ObjErrorKind};
 use super::obj_gltf::{self, ConvertError, ConvertLimits};
 use super::uri::PartSet;
+use super::{Processed, SceneOptions};
 use tspace_tangent::Method;
 
 /// What kind of file the main input is.
@@ -83,14 +84,14 @@ pub fn process<'a>(
     match kind {
         InputKind::Glb | InputKind::Gltf => {
             if kind == InputKind::Gltf && glb::is_glb(main) {
-                return Err(SceneError::malformed(
-                    "malformed-gltf",
+                return Err(SceneError::new(
+                    ProblemCode::MalformedGltf,
                     "the input was declared .gltf (JSON) but is a GLB",
                 ));
             }
             if kind == InputKind::Glb && !glb::is_glb(main) {
-                return Err(SceneError::malformed(
-                    "malformed-glb",
+                return Err(SceneError::new(
+                    ProblemCode::MalformedGlb,
                     "the input was declared GLB but does not start with the GLB magic 'glTF'",
                 ));
             }
@@ -104,13 +105,13 @@ fn obj_error(error: obj::ObjError) -> SceneError {
     match &error.kind {
         ObjErrorKind::LimitExceeded { what, .. } => {
             let code = if what.contains("triangle") {
-                "too-many-triangles"
+                ProblemCode::TooManyTriangles
             } else {
-                "too-many-vertices"
+                ProblemCode::TooManyVertices
             };
-            SceneError::too_large(code, format!("OBJ {error}"))
+            SceneError::new(code, format!("OBJ {error}"))
         }
-        _ => SceneError::malformed("malformed-obj", format!("OBJ {error}")),
+        _ => SceneError::new(ProblemCode::MalformedObj, format!("OBJ {error}")),
     }
 }
 
@@ -130,8 +131,8 @@ fn process_obj<'a>(
     )
     .map_err(obj_error)?;
     if parsed.uvs.is_empty() && options.method != Method::Axis && parsed.triangle_count() > 0 {
-        return Err(SceneError::unprocessable(
-            "obj-without-uvs",
+        return Err(SceneError::new(
+            ProblemCode::ObjWithoutUvs,
             "the OBJ has no texture coordinates (vt), and tangents follow them; ask for the axis method (method=axis) to get tangents that need none",
         ));
     }
@@ -144,7 +145,7 @@ fn process_obj<'a>(
             Ok(bytes) => {
                 extra_bytes += bytes.len() as u64;
                 let library = obj::parse_mtl(&bytes).map_err(|e| {
-                    SceneError::malformed("malformed-mtl", format!("MTL {name:?}: {e}"))
+                    SceneError::new(ProblemCode::MalformedMtl, format!("MTL {name:?}: {e}"))
                 })?;
                 match &mut mtl {
                     None => mtl = Some(library),
@@ -228,12 +229,12 @@ fn process_obj<'a>(
         &ConvertLimits::default(),
     )
     .map_err(|e| match e {
-        ConvertError::TooLarge { .. } => SceneError::too_large("too-large", e.to_string()),
-        _ => SceneError::unprocessable("obj-not-convertible", e.to_string()),
+        ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
+        _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
     })?;
     warnings.extend(converted.warnings);
     let glb_bytes = glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
-        .map_err(|e| SceneError::too_large("too-large", format!("the converted OBJ {e}")))?;
+        .map_err(|e| SceneError::new(ProblemCode::TooLarge, format!("the converted OBJ {e}")))?;
     let mut processed = gltf::process_with(
         &glb_bytes,
         &NoResources,

@@ -12,5 +12,8 @@ pub mod gltf;
 pub mod input;
 pub mod obj;
 pub mod obj_gltf;
+pub mod options;
 pub mod report;
 pub mod uri;
+
+pub use options::{OutputFormat, Processed, SceneLimits, SceneOptions};

@@ -2,84 +2,39 @@
 //! and turn its answer into a response.
 
 use super::held::HeldBody;
-use super::problem::{CODES, Problem};
+use super::mixed;
+use super::problem::{Problem, ProblemCodes};
 use super::{App, content_type};
-use crate::scene::gltf::write::OutputFormat;
-use crate::scene::gltf::{Processed, SceneLimits, SceneOptions};
+use crate::scene::error::ProblemCode;
 use crate::scene::input::{self, InputKind};
 use crate::scene::uri::{PartSet, percent_decode};
+use crate::scene::{OutputFormat, Processed, SceneLimits, SceneOptions};
 use axum::body::{Body, Bytes};
-use axum::extract::{FromRequest, Multipart, Path, RawQuery, Request, State};
+use axum::extract::{FromRequest, Multipart, RawQuery, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use tokio::sync::OwnedSemaphorePermit;
-use tspace_tangent::Method;
 use utoipa::OpenApi;
 
-/// The query options of both POST routes.
-struct Query {
-    method: Method,
-    overwrite: bool,
-    all: bool,
-    format: OutputFormat,
-}
-
-fn parse_bool(key: &str, value: &str) -> Result<bool, Problem> {
-    match value {
-        "" | "true" | "1" | "yes" => Ok(true),
-        "false" | "0" | "no" => Ok(false),
-        _ => Err(invalid_option(format!(
-            "{key}={value:?}: expected true or false"
-        ))),
-    }
-}
-
 fn invalid_option(detail: String) -> Problem {
-    Problem::new(StatusCode::BAD_REQUEST, "invalid-option", detail)
+    Problem::new(ProblemCode::InvalidOption, detail)
 }
 
-fn parse_query(raw: Option<&str>) -> Result<Query, Problem> {
-    let mut query = Query {
-        method: Method::MikkTSpace,
-        overwrite: false,
-        all: false,
-        format: OutputFormat::Glb,
-    };
+/// The query options of both POST routes, parsed by the scene layer's own option parser (the
+/// one the command line's values go through too). Limits and `write` are set per route.
+fn parse_query(raw: Option<&str>) -> Result<SceneOptions, Problem> {
+    let mut options = SceneOptions::default();
     for pair in raw.unwrap_or("").split('&').filter(|p| !p.is_empty()) {
         let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
         let value = percent_decode(&value.replace('+', " "))
             .map_err(|e| invalid_option(format!("{key}: {e}")))?;
-        match key {
-            "method" => {
-                query.method = Method::from_name(&value).ok_or_else(|| {
-                    invalid_option(format!(
-                        "method={value:?}: expected mikktspace, fast or axis"
-                    ))
-                })?
-            }
-            "overwrite" => query.overwrite = parse_bool(key, &value)?,
-            "all" => query.all = parse_bool(key, &value)?,
-            "format" => {
-                query.format = match value.as_str() {
-                    "glb" => OutputFormat::Glb,
-                    "gltf" => OutputFormat::GltfEmbedded,
-                    _ => {
-                        return Err(invalid_option(format!(
-                            "format={value:?}: expected glb or gltf"
-                        )));
-                    }
-                }
-            }
-            _ => {
-                return Err(invalid_option(format!(
-                    "unknown option {key:?}; the options are method, overwrite, all and format"
-                )));
-            }
-        }
+        options
+            .set(key, &value)
+            .map_err(|e| invalid_option(e.to_string()))?;
     }
-    Ok(query)
+    Ok(options)
 }
 
 /// The scene and its named parts, as the request carried them.
@@ -113,8 +68,7 @@ fn kind_of(declared: Option<&str>, name: Option<&str>, bytes: &[u8]) -> Result<I
         None | Some("application/octet-stream" | "text/plain" | "") => {}
         Some(other) => {
             return Err(Problem::new(
-                StatusCode::UNSUPPORTED_MEDIA_TYPE,
-                "unsupported-media-type",
+                ProblemCode::UnsupportedMediaType,
                 format!(
                     "{other} is not a scene; send model/gltf-binary, model/gltf+json, model/obj, multipart/form-data, or application/octet-stream to have the bytes sniffed"
                 ),
@@ -123,8 +77,7 @@ fn kind_of(declared: Option<&str>, name: Option<&str>, bytes: &[u8]) -> Result<I
     }
     InputKind::sniff(bytes).ok_or_else(|| {
         Problem::new(
-            StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            "unsupported-media-type",
+            ProblemCode::UnsupportedMediaType,
             "the body is neither GLB, glTF JSON nor OBJ text",
         )
     })
@@ -132,8 +85,7 @@ fn kind_of(declared: Option<&str>, name: Option<&str>, bytes: &[u8]) -> Result<I
 
 fn too_large(limit: usize) -> Problem {
     Problem::new(
-        StatusCode::PAYLOAD_TOO_LARGE,
-        "body-too-large",
+        ProblemCode::BodyTooLarge,
         format!("the request body is over the limit of {limit} bytes"),
     )
 }
@@ -150,13 +102,9 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
     }
     let media = media_type(&headers);
     if media.as_deref() == Some("multipart/form-data") {
-        let mut multipart = Multipart::from_request(request, &()).await.map_err(|e| {
-            Problem::new(
-                StatusCode::BAD_REQUEST,
-                "malformed-multipart",
-                e.body_text(),
-            )
-        })?;
+        let mut multipart = Multipart::from_request(request, &())
+            .await
+            .map_err(|e| Problem::new(ProblemCode::MalformedMultipart, e.body_text()))?;
         let mut fields: Vec<(String, Option<String>, Option<String>, Bytes)> = Vec::new();
         loop {
             let field = match multipart.next_field().await {
@@ -166,11 +114,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
                     return Err(too_large(limit));
                 }
                 Err(e) => {
-                    return Err(Problem::new(
-                        StatusCode::BAD_REQUEST,
-                        "malformed-multipart",
-                        e.body_text(),
-                    ));
+                    return Err(Problem::new(ProblemCode::MalformedMultipart, e.body_text()));
                 }
             };
             let field_name = field.name().unwrap_or("").to_owned();
@@ -182,11 +126,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
                     return Err(too_large(limit));
                 }
                 Err(e) => {
-                    return Err(Problem::new(
-                        StatusCode::BAD_REQUEST,
-                        "malformed-multipart",
-                        e.body_text(),
-                    ));
+                    return Err(Problem::new(ProblemCode::MalformedMultipart, e.body_text()));
                 }
             };
             fields.push((field_name, file_name, part_type, bytes));
@@ -204,8 +144,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
             .or(if fields.is_empty() { None } else { Some(0) })
             .ok_or_else(|| {
                 Problem::new(
-                    StatusCode::BAD_REQUEST,
-                    "missing-file",
+                    ProblemCode::MissingFile,
                     "the multipart body has no parts; send the scene as a part named file",
                 )
             })?;
@@ -227,8 +166,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
         .map_err(|_| too_large(limit))?;
     if body.is_empty() {
         return Err(Problem::new(
-            StatusCode::BAD_REQUEST,
-            "missing-file",
+            ProblemCode::MissingFile,
             "the request body is empty; send a GLB, a .gltf or an OBJ",
         ));
     }
@@ -258,8 +196,7 @@ async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Prob
         Err(_) => {
             app.metrics.reject("slow_upload");
             Err(Problem::new(
-                StatusCode::REQUEST_TIMEOUT,
-                "request-timeout",
+                ProblemCode::RequestTimeout,
                 format!(
                     "the request body did not arrive within {:.1} s",
                     app.config.read_timeout.as_secs_f64()
@@ -304,11 +241,7 @@ async fn run(app: &Arc<App>, upload: Upload, options: SceneOptions) -> Result<Pr
         let mut parts = PartSet::new();
         for (name, bytes) in &upload.parts {
             if let Err(e) = parts.insert(name.clone(), bytes) {
-                return Err(Problem::new(
-                    StatusCode::BAD_REQUEST,
-                    "malformed-multipart",
-                    e.to_string(),
-                ));
+                return Err(Problem::new(ProblemCode::MalformedMultipart, e.to_string()));
             }
         }
         input::process(upload.kind, &upload.main, &parts, &options).map_err(Problem::from)
@@ -339,8 +272,7 @@ where
         Err(_) => {
             app.metrics.reject("timeout");
             Err(Problem::new(
-                StatusCode::GATEWAY_TIMEOUT,
-                "timeout",
+                ProblemCode::Timeout,
                 format!(
                     "the scene took longer than {} s",
                     app.config.timeout.as_secs()
@@ -356,24 +288,19 @@ where
 fn internal(cause: &str) -> Problem {
     tracing::error!(cause, "a job failed unexpectedly");
     Problem::new(
-        StatusCode::INTERNAL_SERVER_ERROR,
-        "internal",
+        ProblemCode::Internal,
         "tspace failed unexpectedly on this scene; the error was logged",
     )
 }
 
-fn scene_options(app: &App, query: &Query, write: bool) -> SceneOptions {
+fn scene_options(app: &App, query: &SceneOptions, write: bool) -> SceneOptions {
     SceneOptions {
-        method: query.method,
-        overwrite: query.overwrite,
-        all: query.all,
-        format: query.format,
         write,
         limits: SceneLimits {
             max_triangles: app.config.max_triangles,
             ..SceneLimits::default()
         },
-        ..SceneOptions::default()
+        ..*query
     }
 }
 
@@ -410,12 +337,7 @@ fn wants_multipart(headers: &HeaderMap) -> bool {
             (Vec<u8> = "model/gltf+json"),
             (Vec<u8> = "multipart/mixed"),
         )),
-        (status = 400, description = "Malformed input or option (application/problem+json)"),
-        (status = 413, description = "Over a size limit"),
-        (status = 415, description = "Not a scene"),
-        (status = 422, description = "Well-formed but cannot be processed (Draco required, missing part, OBJ without UVs)"),
-        (status = 503, description = "Overloaded; see Retry-After"),
-        (status = 504, description = "Took too long"),
+        // The error responses are added from ProblemCode by ProblemCodes.
     )
 )]
 pub async fn tangents(
@@ -434,23 +356,14 @@ pub async fn tangents(
         OutputFormat::GltfEmbedded => "model/gltf+json",
     };
     if multipart {
-        let boundary = "tspace-report-and-scene-7c1f3a";
-        let report = processed.report.to_json_pretty();
         let file_name = match query.format {
             OutputFormat::Glb => "scene.glb",
             OutputFormat::GltfEmbedded => "scene.gltf",
         };
-        let mut body = Vec::with_capacity(bytes.len() + report.len() + 512);
-        body.extend_from_slice(
-            format!(
-                "--{boundary}\r\nContent-Type: application/json\r\nContent-Disposition: inline; name=\"report\"\r\n\r\n{report}\r\n--{boundary}\r\nContent-Type: {scene_type}\r\nContent-Disposition: attachment; name=\"scene\"; filename=\"{file_name}\"\r\n\r\n"
-            )
-            .as_bytes(),
-        );
-        body.extend_from_slice(&bytes);
-        body.extend_from_slice(format!("\r\n--{boundary}--\r\n").as_bytes());
-        let mut response = Response::new(Body::new(HeldBody::new(body, permit)));
-        if let Ok(value) = HeaderValue::from_str(&format!("multipart/mixed; boundary={boundary}")) {
+        let report = processed.report.to_json_pretty();
+        let mixed = mixed::report_and_scene(&report, &bytes, scene_type, file_name);
+        let mut response = Response::new(Body::new(HeldBody::new(mixed.body, permit)));
+        if let Ok(value) = HeaderValue::from_str(&mixed.content_type) {
             response.headers_mut().insert(header::CONTENT_TYPE, value);
         }
         return Ok(response);
@@ -477,11 +390,7 @@ pub async fn tangents(
     request_body(description = "As for /v1/tangents", content((Vec<u8> = "model/gltf-binary"))),
     responses(
         (status = 200, description = "The full JSON report", content_type = "application/json"),
-        (status = 400, description = "Malformed input or option"),
-        (status = 413, description = "Over a size limit"),
-        (status = 415, description = "Not a scene"),
-        (status = 422, description = "Cannot be processed"),
-        (status = 503, description = "Overloaded"),
+        // The error responses are added from ProblemCode by ProblemCodes.
     )
 )]
 pub async fn analyze(
@@ -531,47 +440,14 @@ pub async fn metrics(State(app): State<Arc<App>>) -> Response {
     response
 }
 
-/// What a problem `type` means.
-pub async fn problem_type(Path(code): Path<String>) -> Response {
-    match CODES.iter().find(|(c, _, _)| *c == code) {
-        Some((code, status, title)) => (
-            StatusCode::OK,
-            format!("{code} (HTTP {status}): {title}.\n"),
-        )
-            .into_response(),
-        None => not_found().await.into_response(),
-    }
-}
-
-pub async fn method_not_allowed() -> Problem {
-    Problem {
-        type_uri: "about:blank".into(),
-        title: "Method Not Allowed",
-        status: 405,
-        detail: "this route does not take that method; see /docs".into(),
-        code: "method-not-allowed",
-        retry_after: None,
-    }
-}
-
-pub async fn not_found() -> Problem {
-    Problem {
-        type_uri: "about:blank".into(),
-        title: "Not Found",
-        status: 404,
-        detail: "no such route; see /docs".into(),
-        code: "not-found",
-        retry_after: None,
-    }
-}
-
 #[derive(OpenApi)]
 #[openapi(
     info(
         title = "tspace",
         description = "Tangent frames for glTF, GLB and OBJ scenes: MikkTSpace-exact, with a report of what was found."
     ),
-    paths(tangents, analyze, healthz, readyz, metrics)
+    paths(tangents, analyze, healthz, readyz, metrics),
+    modifiers(&ProblemCodes)
 )]
 pub struct ApiDoc;
 
@@ -579,6 +455,7 @@ pub struct ApiDoc;
 mod tests {
     use super::*;
     use crate::config::ServerConfig;
+    use tspace_tangent::Method;
 
     #[tokio::test]
     async fn a_panicking_job_is_a_500_and_the_pool_serves_on() {
@@ -592,7 +469,7 @@ mod tests {
             .await
             .err()
             .unwrap();
-        assert_eq!((problem.status, problem.code), (500, "internal"));
+        assert_eq!((problem.status, problem.code), (500, ProblemCode::Internal));
         assert!(
             !problem.detail.contains("index out of bounds"),
             "no internals leak"

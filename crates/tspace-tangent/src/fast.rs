@@ -8,14 +8,15 @@ use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck};
 use super::fallback::{self, Problem};
 use super::fill::filled;
 use super::math::{
-    Mesh, add, cross, dot, encode, is_finite3, length, normalize_or_zero,
-    normalize_or_zero_branchless, reject, same_position, scale, sub,
+    Mesh, cross, dot, encode, is_finite3, length, normalize_or_zero, normalize_or_zero_branchless,
+    same_position, scale, sub,
 };
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
 use super::triangles::{BATCH, TriangleColumns, per_triangle_pass};
 use super::vectors::widest_vectors;
 use super::weld::{CornerTable, NONE, weld_mesh};
+use glam::Vec3;
 use rayon::prelude::*;
 
 #[derive(Clone, Copy, Default)]
@@ -201,7 +202,7 @@ pub(crate) fn generate(
             let normal = mesh.normals[mesh.indices[corners[0] as usize] as usize];
             let check_normal = fallback::check_normal(normal);
             // [preserving, mirrored] sums of s and t.
-            let mut sums = [[[0.0f32; 3]; 2]; 2];
+            let mut sums = [[Vec3::ZERO; 2]; 2];
             // Bit s: some corner takes side s's tangent (see below).
             let mut sides_used = 0u8;
             let mut unsigned = false;
@@ -214,10 +215,10 @@ pub(crate) fn generate(
                 let side = usize::from(f.sign < 0.0);
                 sides_used |= 1 << side;
                 let w = f.weights[corner as usize % 3];
-                sums[side][0] = add(sums[side][0], scale(f.s, w));
-                sums[side][1] = add(sums[side][1], scale(f.t, w));
+                sums[side][0] += Vec3::from(f.s) * w;
+                sums[side][1] += Vec3::from(f.t) * w;
             }
-            let strongest = usize::from(dot(sums[1][0], sums[1][0]) > dot(sums[0][0], sums[0][0]));
+            let strongest = usize::from(sums[1][0].length_squared() > sums[0][0].length_squared());
             if unsigned {
                 sides_used |= 1 << strongest;
             }
@@ -236,8 +237,12 @@ pub(crate) fn generate(
                     usize::from(f.sign < 0.0)
                 };
                 let (t, valid) = *finished[side].get_or_insert_with(|| {
-                    let tangent = normalize_or_zero(reject(sums[side][0], normal));
-                    let handedness = dot(cross(normal, tangent), sums[side][1]);
+                    let normal = Vec3::from(normal);
+                    let s = sums[side][0];
+                    // Gram–Schmidt; normalize_or_zero is the reference's, which leaves a
+                    // near-zero vector as it is for the fallback to find.
+                    let tangent = normalize_or_zero((s - normal * normal.dot(s)).to_array());
+                    let handedness = normal.cross(Vec3::from(tangent)).dot(sums[side][1]);
                     let orientation_preserving = if handedness != 0.0 {
                         handedness > 0.0
                     } else {

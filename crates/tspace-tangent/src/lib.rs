@@ -114,16 +114,57 @@ impl Method {
         }
     }
 
-    /// Parses a method name as accepted on the command line and in query strings.
-    pub fn from_name(name: &str) -> Option<Method> {
-        match name {
-            "mikktspace" | "mikk" => Some(Method::MikkTSpace),
-            "fast" => Some(Method::Fast),
-            "axis" => Some(Method::Axis),
-            _ => None,
+    /// Every method, in the order help texts list them.
+    pub const ALL: [Method; 3] = [Method::MikkTSpace, Method::Fast, Method::Axis];
+
+    /// Other spellings [`Method::from_name`] accepts besides [`Method::name`].
+    pub fn aliases(self) -> &'static [&'static str] {
+        match self {
+            Method::MikkTSpace => &["mikk"],
+            Method::Fast | Method::Axis => &[],
         }
     }
+
+    /// Parses a method name as accepted on the command line and in query strings: a
+    /// [`Method::name`] or one of its [`Method::aliases`].
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == name || m.aliases().contains(&name))
+    }
 }
+
+/// The one parser of method names that the command line and the query string share.
+impl std::str::FromStr for Method {
+    type Err = UnknownMethod;
+
+    fn from_str(name: &str) -> Result<Method, UnknownMethod> {
+        Method::from_name(name).ok_or(UnknownMethod)
+    }
+}
+
+/// A method name [`Method::from_name`] does not know. Its message lists the names it does
+/// (callers add which value was given, and where).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownMethod;
+
+impl fmt::Display for UnknownMethod {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("expected ")?;
+        let last = Method::ALL.len() - 1;
+        for (i, method) in Method::ALL.iter().enumerate() {
+            let separator = match i {
+                0 => "",
+                _ if i == last => " or ",
+                _ => ", ",
+            };
+            write!(f, "{separator}{}", method.name())?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for UnknownMethod {}
 
 /// Where the texture-coordinate origin lies, which decides the sign of `w`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -460,6 +501,19 @@ fn check_lengths(input: &MeshInput<'_>, parallel: bool) -> Result<(), CoreError>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn method_names_parse_back_and_unknown_ones_say_what_is_accepted() {
+        for method in Method::ALL {
+            assert_eq!(method.name().parse(), Ok(method));
+            for alias in method.aliases() {
+                assert_eq!(alias.parse(), Ok(method));
+            }
+        }
+        assert_eq!("mikk".parse(), Ok(Method::MikkTSpace));
+        let error = "magic".parse::<Method>().unwrap_err();
+        assert_eq!(error.to_string(), "expected mikktspace, fast or axis");
+    }
 
     /// The parallel index check names the same first bad corner as the serial one, wherever
     /// it lies among the chunks.

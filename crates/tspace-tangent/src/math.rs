@@ -1,7 +1,10 @@
 //! Small vector helpers on `[f32; 3]`, and the mesh view shared by the methods.
 //!
-//! The arithmetic mirrors the operation order of the MikkTSpace reference where that matters for
-//! bit-identical results (`normalize_or_zero` multiplies by the reciprocal length, for example).
+//! The `[f32; 3]` arithmetic mirrors the operation order of the MikkTSpace reference, which the
+//! bit-identical results depend on (`normalize_or_zero` multiplies by the reciprocal length and
+//! leaves near-zero vectors alone, unlike glam's). Off that path, in f64, glam's `DVec3` does.
+
+use glam::DVec3;
 
 /// A validated, indexed triangle list with normals: what every method works on.
 #[derive(Clone, Copy)]
@@ -152,28 +155,22 @@ pub(crate) fn unit(v: [f32; 3]) -> Option<[f32; 3]> {
     if !is_finite3(v) {
         return None;
     }
-    let w = v.map(f64::from);
-    let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+    let v = DVec3::from(v.map(f64::from));
+    let len = v.length();
     if len == 0.0 {
         return None;
     }
-    Some(w.map(|x| (x / len) as f32))
+    Some((v / len).to_array().map(|x| x as f32))
 }
 
 /// The unit normal of a triangle, computed in f64 so that tiny and huge triangles work too;
 /// `None` when the triangle has no area or a non-finite corner.
 pub(crate) fn face_normal(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Option<[f32; 3]> {
-    let [a, b, c] = [a, b, c].map(|p| p.map(f64::from));
-    let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let n = [
-        e1[1] * e2[2] - e1[2] * e2[1],
-        e1[2] * e2[0] - e1[0] * e2[2],
-        e1[0] * e2[1] - e1[1] * e2[0],
-    ];
-    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    let [a, b, c] = [a, b, c].map(|p| DVec3::from(p.map(f64::from)));
+    let n = (b - a).cross(c - a);
+    let len = n.length();
     if len > 0.0 && len.is_finite() {
-        Some(n.map(|x| (x / len) as f32))
+        Some((n / len).to_array().map(|x| x as f32))
     } else {
         None
     }

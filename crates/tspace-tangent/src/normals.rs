@@ -4,9 +4,10 @@
 //! Either way, corners of one vertex that end up with bit-identical normals keep sharing it, so
 //! the result is expressed like a split plan: new vertices as copies of input vertices.
 
-use super::math::{dot, normalize_or_zero, sub, unit};
+use super::math::{normalize_or_zero, unit};
 use super::weld::{CornerTable, Key, weld_vertices};
 use super::{MeshInput, NormalMode, SplitPlan};
+use glam::Vec3;
 use std::collections::HashMap;
 
 pub(crate) struct GeneratedNormals {
@@ -23,10 +24,12 @@ fn face_normal(positions: &[[f32; 3]], tri: [usize; 3]) -> [f32; 3] {
 }
 
 fn corner_angle(positions: &[[f32; 3]], tri: [usize; 3], i: usize) -> f32 {
-    let here = positions[tri[i]];
-    let e1 = normalize_or_zero(sub(positions[tri[(i + 1) % 3]], here));
-    let e2 = normalize_or_zero(sub(positions[tri[(i + 2) % 3]], here));
-    let angle = dot(e1, e2).clamp(-1.0, 1.0).acos();
+    let here = Vec3::from(positions[tri[i]]);
+    let edge = |k: usize| normalize_or_zero((Vec3::from(positions[tri[k]]) - here).to_array());
+    let angle = Vec3::from(edge((i + 1) % 3))
+        .dot(Vec3::from(edge((i + 2) % 3)))
+        .clamp(-1.0, 1.0)
+        .acos();
     if angle.is_finite() { angle } else { 0.0 }
 }
 
@@ -74,21 +77,17 @@ pub(crate) fn generate(input: &MeshInput<'_>, mode: NormalMode) -> GeneratedNorm
             for class in 0..weld.class_count {
                 let corners = table.of(class);
                 for &c in corners {
-                    let own = faces[c as usize / 3];
-                    let mut sum = [0.0f32; 3];
+                    let own = Vec3::from(faces[c as usize / 3]);
+                    let mut sum = Vec3::ZERO;
                     for &d in corners {
-                        let other = faces[d as usize / 3];
-                        if d == c || dot(own, other) >= cos_crease {
+                        let other = Vec3::from(faces[d as usize / 3]);
+                        if d == c || own.dot(other) >= cos_crease {
                             let w =
                                 corner_angle(positions, triangle(d as usize / 3), d as usize % 3);
-                            sum = [
-                                sum[0] + other[0] * w,
-                                sum[1] + other[1] * w,
-                                sum[2] + other[2] * w,
-                            ];
+                            sum += other * w;
                         }
                     }
-                    normals[c as usize] = unit(sum).unwrap_or(own);
+                    normals[c as usize] = unit(sum.to_array()).unwrap_or(own.to_array());
                 }
             }
             normals

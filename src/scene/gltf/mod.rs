@@ -12,73 +12,17 @@ pub mod plan;
 pub mod refs;
 pub mod write;
 
-use crate::scene::error::SceneError;
+use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::{MorphReport, PrimitiveReport, Report};
+use crate::scene::{OutputFormat, Processed, SceneOptions};
 use compute::{Computed, GeometryLimits};
 use load::{LoadLimits, Resources};
-use plan::{Action, GeometryKey, PlanOptions, Topology};
+use plan::{Action, GeometryKey, PlanOptions, PrimitivePlan, Topology};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use tspace_json::Node;
-use tspace_tangent::{Method, NormalMode, Options, UvOrigin};
-use write::{Changes, OutputFormat, PrimitiveEdit, Ref};
-
-/// Caps on what one scene may make tspace allocate or compute.
-#[derive(Clone, Copy, Debug)]
-pub struct SceneLimits {
-    /// Triangles over all distinct computations of one scene.
-    pub max_triangles: usize,
-    /// Elements in one accessor.
-    pub max_vertices: usize,
-    /// Bytes one buffer may declare.
-    pub max_buffer_bytes: usize,
-}
-
-impl Default for SceneLimits {
-    fn default() -> Self {
-        SceneLimits {
-            max_triangles: 1 << 24,
-            max_vertices: 1 << 24,
-            max_buffer_bytes: 1 << 30,
-        }
-    }
-}
-
-/// What to do with a scene.
-#[derive(Clone, Copy, Debug)]
-pub struct SceneOptions {
-    pub method: Method,
-    /// Recompute tangents a primitive already has.
-    pub overwrite: bool,
-    /// Give tangents to every triangle primitive, whatever its material.
-    pub all: bool,
-    pub format: OutputFormat,
-    /// For primitives without normals.
-    pub normal_mode: NormalMode,
-    /// Write the scene; `false` only analyses and reports.
-    pub write: bool,
-    pub limits: SceneLimits,
-}
-
-impl Default for SceneOptions {
-    fn default() -> Self {
-        SceneOptions {
-            method: Method::MikkTSpace,
-            overwrite: false,
-            all: false,
-            format: OutputFormat::Glb,
-            normal_mode: NormalMode::Flat,
-            write: true,
-            limits: SceneLimits::default(),
-        }
-    }
-}
-
-/// The written scene (unless only analysed) and its report.
-pub struct Processed {
-    pub bytes: Option<Vec<u8>>,
-    pub report: Report,
-}
+use tspace_tangent::{Method, Options, UvOrigin};
+use write::{Changes, PrimitiveEdit, Ref};
 
 fn accessor_count(root: &Node, index: Option<usize>) -> usize {
     index
@@ -119,7 +63,8 @@ pub struct Internal {
     pub no_material_means_tangents: bool,
 }
 
-/// [`process`], with the choices of [`Internal`].
+/// [`process`], with the choices of [`Internal`]: load, plan the jobs, compute them, report
+/// every primitive (collecting the edits as it goes), write.
 pub fn process_with<'a>(
     bytes: &'a [u8],
     resources: &dyn Resources<'a>,
@@ -127,160 +72,236 @@ pub fn process_with<'a>(
     internal: &Internal,
 ) -> Result<Processed, SceneError> {
     let limits = options.limits;
-    let loaded = load::load(
-        bytes,
-        resources,
-        &LoadLimits {
-            max_buffer_bytes: limits.max_buffer_bytes,
-        },
-    )?;
+    let load_limits = LoadLimits {
+        max_buffer_bytes: limits.max_buffer_bytes,
+    };
+    let loaded = load::load(bytes, resources, &load_limits)?;
     let root = loaded.doc.root();
+    refuse_required_draco(root)?;
+    let plans = plan::plan(root, &plan_options(options, internal));
+    let jobs = plan_jobs(root, &plans, options.method)?;
+    check_triangle_budget(root, &jobs.list, limits.max_triangles)?;
+    let buffers = loaded.buffer_slices();
+    let computed = compute_jobs(root, &jobs.list, &buffers, options)?;
+    let scene = Scene {
+        root,
+        buffers: &buffers,
+        max_vertices: limits.max_vertices,
+    };
+    let mut report = report_header(bytes, &loaded, options);
+    let edits = report_primitives(&scene, &plans, &jobs, &computed, &mut report)?;
+    add_totals(&mut report, &computed, &edits);
+    let bytes = write_scene(
+        bytes,
+        &loaded,
+        &edits.changes,
+        options,
+        resources,
+        &mut report,
+    )?;
+    Ok(Processed { bytes, report })
+}
+
+fn plan_options(options: &SceneOptions, internal: &Internal) -> PlanOptions {
+    PlanOptions {
+        overwrite: options.overwrite,
+        all: options.all,
+        axis: options.method == Method::Axis,
+        no_material_means_tangents: internal.no_material_means_tangents,
+    }
+}
+
+/// A file that lists Draco as required has no uncompressed data to fall back on.
+fn refuse_required_draco(root: &Node) -> Result<(), SceneError> {
     if extension_listed(root, "extensionsRequired", "KHR_draco_mesh_compression") {
-        return Err(SceneError::unprocessable(
-            "draco-required",
+        return Err(SceneError::new(
+            ProblemCode::DracoRequired,
             "the file requires KHR_draco_mesh_compression, which tspace does not decode; export it without Draco, or with an uncompressed fallback",
         ));
     }
+    Ok(())
+}
 
-    let plans = plan::plan(
-        root,
-        &PlanOptions {
-            overwrite: options.overwrite,
-            all: options.all,
-            axis: options.method == Method::Axis,
-            no_material_means_tangents: internal.no_material_means_tangents,
-        },
-    );
+/// One computation: a distinct geometry under one method. Primitives that share accessors
+/// (instanced copies, one mesh under several materials) share its job, so each geometry is
+/// computed, and its new accessors written, once.
+struct Job {
+    key: GeometryKey,
+    method: Method,
+    /// The first primitive that needed it (`meshes[m].primitives[p]`), for messages.
+    path: String,
+}
 
-    // One job per distinct geometry and method; audits always compare with MikkTSpace.
-    let mut job_of_plan: Vec<Option<usize>> = vec![None; plans.len()];
-    let mut jobs: Vec<(GeometryKey, Method, String)> = Vec::new();
-    let mut job_index: HashMap<(GeometryKey, Method), usize> = HashMap::new();
-    let mut triangles_planned = 0usize;
+/// A scene's jobs, in the order primitives first need them, and the job each plan uses.
+struct Jobs {
+    list: Vec<Job>,
+    /// Per plan: its job, or `None` when it computes nothing.
+    of_plan: Vec<Option<usize>>,
+}
+
+fn plan_jobs(root: &Node, plans: &[PrimitivePlan], method: Method) -> Result<Jobs, SceneError> {
+    let mut jobs = Jobs {
+        list: Vec::new(),
+        of_plan: vec![None; plans.len()],
+    };
+    let mut index: HashMap<(GeometryKey, Method), usize> = HashMap::new();
     for (p, plan) in plans.iter().enumerate() {
         let Some(key) = &plan.key else { continue };
+        // Audits always compare with MikkTSpace, what the existing tangents' bakers used.
         let method = match plan.action {
             Action::Audit => Method::MikkTSpace,
-            _ => options.method,
+            _ => method,
         };
         let path = format!("meshes[{}].primitives[{}]", plan.mesh, plan.primitive);
-        if let Some(primitive) = primitive_node(root, plan.mesh, plan.primitive) {
-            let draco = primitive
-                .get("extensions")
-                .and_then(|e| e.get("KHR_draco_mesh_compression"))
-                .is_some();
-            let position_has_data = root
-                .get("accessors")
-                .and_then(|a| a.index(key.position))
-                .is_some_and(|a| a.get("bufferView").is_some() || a.get("sparse").is_some());
-            if draco && !position_has_data {
-                return Err(SceneError::unprocessable(
-                    "draco-required",
-                    format!(
-                        "{path} is compressed with KHR_draco_mesh_compression and has no uncompressed fallback; tspace does not decode Draco"
-                    ),
-                ));
-            }
-        }
-        let next = jobs.len();
-        let job = *job_index
-            .entry((key.clone(), method))
-            .or_insert_with(|| next);
+        refuse_draco_without_fallback(root, plan, key, &path)?;
+        let next = jobs.list.len();
+        let job = *index.entry((key.clone(), method)).or_insert(next);
         if job == next {
-            let corners = match key.indices {
-                Some(_) => accessor_count(root, key.indices),
-                None => accessor_count(root, Some(key.position)),
-            };
-            let per_target = 1 + key.targets.len();
-            triangles_planned = triangles_planned.saturating_add(corners / 3 * per_target);
-            jobs.push((key.clone(), method, path));
+            let key = key.clone();
+            jobs.list.push(Job { key, method, path });
         }
-        job_of_plan[p] = Some(job);
+        jobs.of_plan[p] = Some(job);
     }
-    if triangles_planned > limits.max_triangles {
-        return Err(SceneError::too_large(
-            "too-many-triangles",
+    Ok(jobs)
+}
+
+/// A Draco-compressed primitive is processed from its uncompressed fallback (and loses the
+/// extension); one whose POSITION has no data of its own has no fallback.
+fn refuse_draco_without_fallback(
+    root: &Node,
+    plan: &PrimitivePlan,
+    key: &GeometryKey,
+    path: &str,
+) -> Result<(), SceneError> {
+    let Some(primitive) = primitive_node(root, plan.mesh, plan.primitive) else {
+        return Ok(());
+    };
+    let position_has_data = root
+        .get("accessors")
+        .and_then(|a| a.index(key.position))
+        .is_some_and(|a| a.get("bufferView").is_some() || a.get("sparse").is_some());
+    if has_draco(primitive) && !position_has_data {
+        return Err(SceneError::new(
+            ProblemCode::DracoRequired,
             format!(
-                "the scene needs tangents for {triangles_planned} triangles (morph targets included); the limit is {}",
-                limits.max_triangles
+                "{path} is compressed with KHR_draco_mesh_compression and has no uncompressed fallback; tspace does not decode Draco"
             ),
         ));
     }
+    Ok(())
+}
 
-    let buffer_slices = loaded.buffer_slices();
-    let geometry_limits = GeometryLimits {
-        max_vertices: limits.max_vertices,
-        max_triangles: limits.max_triangles,
+fn has_draco(primitive: &Node) -> bool {
+    primitive
+        .get("extensions")
+        .and_then(|e| e.get("KHR_draco_mesh_compression"))
+        .is_some()
+}
+
+/// Refuses the scene before anything is decoded when its jobs, morph targets included (each is
+/// computed like the base mesh), add up to more triangles than the limit.
+fn check_triangle_budget(
+    root: &Node,
+    jobs: &[Job],
+    max_triangles: usize,
+) -> Result<(), SceneError> {
+    let mut planned = 0usize;
+    for Job { key, .. } in jobs {
+        let corners = match key.indices {
+            Some(_) => accessor_count(root, key.indices),
+            None => accessor_count(root, Some(key.position)),
+        };
+        let per_target = 1 + key.targets.len();
+        planned = planned.saturating_add(corners / 3 * per_target);
+    }
+    if planned > max_triangles {
+        return Err(SceneError::new(
+            ProblemCode::TooManyTriangles,
+            format!(
+                "the scene needs tangents for {planned} triangles (morph targets included); the limit is {max_triangles}"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Runs every job, in parallel. All run to the end, so that the error returned is the first in
+/// job order, whatever the threads' timing.
+fn compute_jobs(
+    root: &Node,
+    jobs: &[Job],
+    buffers: &[&[u8]],
+    options: &SceneOptions,
+) -> Result<Vec<Computed>, SceneError> {
+    let limits = GeometryLimits {
+        max_vertices: options.limits.max_vertices,
+        max_triangles: options.limits.max_triangles,
     };
     let results: Vec<Result<Computed, SceneError>> = jobs
         .par_iter()
-        .map(|(key, method, path)| {
-            let large = accessor_count(root, key.indices.or(Some(key.position))) > 300_000;
+        .map(|job| {
+            // Large meshes are worth spreading over the threads inside the core too.
+            let large = accessor_count(root, job.key.indices.or(Some(job.key.position))) > 300_000;
             let core_options = Options {
-                method: *method,
+                method: job.method,
                 uv_origin: UvOrigin::TopLeft,
                 normal_mode: options.normal_mode,
                 parallel: large,
                 ..Options::default()
             };
-            compute::compute(
-                root,
-                key,
-                &buffer_slices,
-                &core_options,
-                &geometry_limits,
-                path,
-            )
+            compute::compute(root, &job.key, buffers, &core_options, &limits, &job.path)
         })
         .collect();
-    let mut computed = Vec::with_capacity(results.len());
-    for result in results {
-        computed.push(result?);
-    }
+    results.into_iter().collect()
+}
 
-    let mut report = Report {
+/// The report's header: what came in and what was asked. Input bytes count the external
+/// buffers read; the writer adds the external images it embeds.
+fn report_header(bytes: &[u8], loaded: &load::Loaded<'_>, options: &SceneOptions) -> Report {
+    let external_buffer_bytes = loaded
+        .buffers
+        .iter()
+        .filter(|b| matches!(b.source, load::BufferSource::External(_)))
+        .map(|b| b.bytes.len() as u64)
+        .sum::<u64>();
+    Report {
         tspace_version: env!("CARGO_PKG_VERSION"),
         input_format: match loaded.container {
             load::Container::Glb => "glb",
             load::Container::Json => "gltf",
         },
-        input_bytes: bytes.len() as u64
-            + loaded
-                .buffers
-                .iter()
-                .filter(|b| matches!(b.source, load::BufferSource::External(_)))
-                .map(|b| b.bytes.len() as u64)
-                .sum::<u64>(),
+        input_bytes: bytes.len() as u64 + external_buffer_bytes,
         method: options.method.name(),
         overwrite: options.overwrite,
         all: options.all,
         ..Report::default()
-    };
-    report.primitives.reserve_exact(plans.len());
-    let mut changes = Changes::default();
-    let mut job_refs: HashMap<usize, JobRefs> = HashMap::new();
-    let mut remapped: HashMap<(usize, usize), Ref> = HashMap::new();
+    }
+}
+
+/// What every primitive's step reads.
+struct Scene<'s> {
+    root: &'s Node,
+    buffers: &'s [&'s [u8]],
+    max_vertices: usize,
+}
+
+/// One report entry per plan, in plan order; for each primitive that gets tangents, its edit.
+fn report_primitives(
+    scene: &Scene<'_>,
+    plans: &[PrimitivePlan],
+    jobs: &Jobs,
+    computed: &[Computed],
+    report: &mut Report,
+) -> Result<Edits, SceneError> {
+    let mut edits = Edits::default();
     let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
-    for (p, plan) in plans.iter().enumerate() {
-        let mut entry = PrimitiveReport {
-            mesh: plan.mesh,
-            primitive: plan.primitive,
-            mesh_name: plan.mesh_name.clone(),
-            material: plan.material,
-            uses: plan.uses,
-            texcoord: plan.texcoord_set,
-            notes: plan.notes.clone(),
-            ..PrimitiveReport::default()
-        };
+    report.primitives.reserve_exact(plans.len());
+    for (plan, &job) in plans.iter().zip(&jobs.of_plan) {
         report.summary.primitives += 1;
-        let job = job_of_plan[p];
         let here = [plan.mesh, plan.primitive];
-        let shared_with = job.map(|j| *first_plan_of_job.entry(j).or_insert(here));
-        entry.shared_with = shared_with.filter(|first| *first != here);
-        match (
-            &plan.action,
-            job.and_then(|j| computed.get(j).map(|c| (j, c))),
-        ) {
+        let first = job.map(|j| *first_plan_of_job.entry(j).or_insert(here));
+        let mut entry = report_entry(plan, first.filter(|first| *first != here));
+        match (&plan.action, job.and_then(|j| Some((j, computed.get(j)?)))) {
             (Action::Skip(reason), _) => {
                 report.summary.skipped += 1;
                 entry.action = "skipped";
@@ -289,118 +310,164 @@ pub fn process_with<'a>(
             }
             (Action::Audit, Some((_, c))) => {
                 report.summary.audited += 1;
-                entry.action = "audited";
-                let tangent = primitive_node(root, plan.mesh, plan.primitive)
-                    .and_then(|n| n.get("attributes")?.get("TANGENT")?.as_u64())
-                    .and_then(|i| usize::try_from(i).ok());
-                if let Some(index) = tangent {
-                    let described = accessor::accessor_from_json(root, index, &buffer_slices)
-                        .map_err(compute::accessor_error)?;
-                    let existing = accessor::read_floats::<4>(&described, limits.max_vertices)
-                        .map_err(compute::accessor_error)?;
-                    let quantized = described.component_type != accessor::ComponentType::F32;
-                    match compute::audit(&existing, c, quantized) {
-                        Ok(audit) => {
-                            if audit.verdict != "matches" {
-                                report.summary.audits_disagreeing += 1;
-                            }
-                            entry.audit = Some(Box::new(audit));
-                        }
-                        Err(problem) => entry.notes.push(format!("audit not possible: {problem}")),
-                    }
-                }
-                // Primitives that share a computation share its diagnostics: the report
-                // gives them once, on the first, or a scene of many copies would grow huge.
-                if entry.shared_with.is_none() {
-                    entry.diagnostics = Some(Box::new((&c.tangents.diagnostics).into()));
-                }
+                audit_primitive(scene, plan, c, &mut entry, report)?;
             }
             (Action::Generate, Some((j, c))) => {
                 report.summary.generated += 1;
-                entry.action = if plan.had_tangents {
-                    "overwritten"
-                } else {
-                    "generated"
-                };
-                // Primitives that share a computation share its diagnostics: the report
-                // gives them once, on the first, or a scene of many copies would grow huge.
-                if entry.shared_with.is_none() {
-                    entry.diagnostics = Some(Box::new((&c.tangents.diagnostics).into()));
-                }
-                let Some(key) = &plan.key else { continue };
-                let Some(primitive) = primitive_node(root, plan.mesh, plan.primitive) else {
+                if !generate_primitive(scene, plan, j, c, &mut entry, &mut edits)? {
                     continue;
-                };
-                let edit = edit_primitive(
-                    root,
-                    primitive,
-                    key.topology,
-                    j,
-                    c,
-                    &buffer_slices,
-                    limits.max_vertices,
-                    &mut changes,
-                    &mut job_refs,
-                    &mut remapped,
-                )?;
-                if !key.targets.is_empty() {
-                    entry.morph_targets = Some(Box::new(MorphReport {
-                        targets: key.targets.len() as u64,
-                        with_tangent_deltas: c.target_deltas.iter().filter(|d| d.is_some()).count()
-                            as u64,
-                        handedness_changes: c.morph_handedness_changes,
-                    }));
                 }
-                changes.primitives.insert((plan.mesh, plan.primitive), edit);
             }
-            _ => {
-                entry.action = "skipped";
-            }
+            _ => entry.action = "skipped",
         }
         report.primitives.push(entry);
     }
-    report.summary.computations = computed.len() as u64;
-    for c in &computed {
-        let d = &c.tangents.diagnostics;
-        report.summary.triangles += d.triangles;
-        report.summary.fallback_tangents += d.fallback_tangents.corners.count;
-        report.summary.handedness_flip_vertices += d.handedness_flip_vertices.count;
-        report.summary.degenerate_triangles +=
-            d.duplicate_position_triangles.count + d.zero_area_triangles.count;
-        report.summary.mirrored_uv_triangles += d.mirrored_uv_triangles.count;
+    Ok(edits)
+}
+
+/// What the plan knows of a primitive, before any action.
+fn report_entry(plan: &PrimitivePlan, shared_with: Option<[usize; 2]>) -> PrimitiveReport {
+    PrimitiveReport {
+        mesh: plan.mesh,
+        primitive: plan.primitive,
+        mesh_name: plan.mesh_name.clone(),
+        material: plan.material,
+        uses: plan.uses,
+        texcoord: plan.texcoord_set,
+        notes: plan.notes.clone(),
+        shared_with,
+        ..PrimitiveReport::default()
     }
-    for (j, c) in computed.iter().enumerate() {
-        if job_refs.contains_key(&j) {
-            report.summary.vertices_added += c.tangents.diagnostics.vertices_added;
+}
+
+/// Primitives that share a computation share its diagnostics: the report gives them once, on
+/// the first, or a scene of many copies would grow huge.
+fn add_diagnostics(entry: &mut PrimitiveReport, c: &Computed) {
+    if entry.shared_with.is_none() {
+        entry.diagnostics = Some(Box::new((&c.tangents.diagnostics).into()));
+    }
+}
+
+/// Compares the primitive's own tangents with MikkTSpace's; the file is left as it is.
+fn audit_primitive(
+    scene: &Scene<'_>,
+    plan: &PrimitivePlan,
+    c: &Computed,
+    entry: &mut PrimitiveReport,
+    report: &mut Report,
+) -> Result<(), SceneError> {
+    entry.action = "audited";
+    let tangent = primitive_node(scene.root, plan.mesh, plan.primitive)
+        .and_then(|n| n.get("attributes")?.get("TANGENT")?.as_u64())
+        .and_then(|i| usize::try_from(i).ok());
+    if let Some(index) = tangent {
+        let described = accessor::accessor_from_json(scene.root, index, scene.buffers)
+            .map_err(compute::accessor_error)?;
+        let existing = accessor::read_floats::<4>(&described, scene.max_vertices)
+            .map_err(compute::accessor_error)?;
+        let quantized = described.component_type != accessor::ComponentType::F32;
+        match compute::audit(&existing, c, quantized) {
+            Ok(audit) => {
+                if audit.verdict != "matches" {
+                    report.summary.audits_disagreeing += 1;
+                }
+                entry.audit = Some(Box::new(audit));
+            }
+            Err(problem) => entry.notes.push(format!("audit not possible: {problem}")),
         }
     }
+    add_diagnostics(entry, c);
+    Ok(())
+}
 
-    let bytes_out = if !options.write {
-        None
-    } else if changes.primitives.is_empty()
+/// Gives the primitive its job's tangents: reports it and records its edit. Returns false,
+/// and the entry is left out of the report, when the primitive is not found again (plans come
+/// from this very document, so it always is).
+fn generate_primitive(
+    scene: &Scene<'_>,
+    plan: &PrimitivePlan,
+    job: usize,
+    c: &Computed,
+    entry: &mut PrimitiveReport,
+    edits: &mut Edits,
+) -> Result<bool, SceneError> {
+    entry.action = if plan.had_tangents {
+        "overwritten"
+    } else {
+        "generated"
+    };
+    add_diagnostics(entry, c);
+    let Some(key) = &plan.key else {
+        return Ok(false);
+    };
+    let Some(primitive) = primitive_node(scene.root, plan.mesh, plan.primitive) else {
+        return Ok(false);
+    };
+    let edit = edits.edit_primitive(scene, primitive, key.topology, job, c)?;
+    if !key.targets.is_empty() {
+        entry.morph_targets = Some(Box::new(MorphReport {
+            targets: key.targets.len() as u64,
+            with_tangent_deltas: c.target_deltas.iter().filter(|d| d.is_some()).count() as u64,
+            handedness_changes: c.morph_handedness_changes,
+        }));
+    }
+    edits
+        .changes
+        .primitives
+        .insert((plan.mesh, plan.primitive), edit);
+    Ok(true)
+}
+
+/// The summary's totals over the computations. Only jobs whose accessors were written added
+/// vertices (an audit adds none).
+fn add_totals(report: &mut Report, computed: &[Computed], edits: &Edits) {
+    let summary = &mut report.summary;
+    summary.computations = computed.len() as u64;
+    for (j, c) in computed.iter().enumerate() {
+        let d = &c.tangents.diagnostics;
+        summary.triangles += d.triangles;
+        summary.fallback_tangents += d.fallback_tangents.corners.count;
+        summary.handedness_flip_vertices += d.handedness_flip_vertices.count;
+        summary.degenerate_triangles +=
+            d.duplicate_position_triangles.count + d.zero_area_triangles.count;
+        summary.mirrored_uv_triangles += d.mirrored_uv_triangles.count;
+        if edits.job_refs.contains_key(&j) {
+            summary.vertices_added += d.vertices_added;
+        }
+    }
+}
+
+/// The output, unless only analysing; what the writer found goes into the report.
+fn write_scene<'a>(
+    bytes: &[u8],
+    loaded: &load::Loaded<'a>,
+    changes: &Changes,
+    options: &SceneOptions,
+    resources: &dyn Resources<'a>,
+    report: &mut Report,
+) -> Result<Option<Vec<u8>>, SceneError> {
+    if !options.write {
+        return Ok(None);
+    }
+    let out = if changes.primitives.is_empty()
         && loaded.container == load::Container::Glb
         && options.format == OutputFormat::Glb
     {
         // Nothing to change: the input is the output, byte for byte.
-        Some(bytes.to_vec())
+        bytes.to_vec()
     } else {
-        let written = write::write(&loaded, &changes, options.format, resources)?;
+        let written = write::write(loaded, changes, options.format, resources)?;
         report.input_bytes += written.embedded_image_bytes;
         report.dropped = written.dropped;
         report.warnings.extend(written.warnings);
-        Some(written.bytes)
+        written.bytes
     };
-    if let Some(out) = &bytes_out {
-        report.output_format = Some(options.format.name());
-        report.output_bytes = Some(out.len() as u64);
-    }
-    Ok(Processed {
-        bytes: bytes_out,
-        report,
-    })
+    report.output_format = Some(options.format.name());
+    report.output_bytes = Some(out.len() as u64);
+    Ok(Some(out))
 }
 
-/// The accessors one computation adds, shared by every primitive that uses it.
+/// The accessors one job adds, shared by every primitive that uses it.
 #[derive(Default)]
 struct JobRefs {
     tangent: Option<Ref>,
@@ -409,102 +476,140 @@ struct JobRefs {
     deltas: HashMap<usize, Ref>,
 }
 
-#[allow(clippy::too_many_arguments)]
-fn edit_primitive(
-    root: &Node,
-    primitive: &Node,
-    topology: Topology,
-    job: usize,
-    c: &Computed,
-    buffers: &[&[u8]],
-    max_vertices: usize,
-    changes: &mut Changes,
-    job_refs: &mut HashMap<usize, JobRefs>,
-    remapped: &mut HashMap<(usize, usize), Ref>,
-) -> Result<PrimitiveEdit, SceneError> {
-    let refs = job_refs.entry(job).or_default();
-    let split = &c.tangents.split;
-    let tangent = *refs
-        .tangent
-        .get_or_insert_with(|| changes.add_floats(&split.vertex_tangents, false));
-    let keeps = c.keeps_vertices(topology);
-    let mut edit = PrimitiveEdit {
-        remove_draco: primitive
-            .get("extensions")
-            .and_then(|e| e.get("KHR_draco_mesh_compression"))
-            .is_some(),
-        ..PrimitiveEdit::default()
-    };
-    let index_of = |n: &Node| n.as_u64().and_then(|i| usize::try_from(i).ok());
-    let mut remap =
-        |index: usize, is_position: bool, changes: &mut Changes| -> Result<Ref, SceneError> {
-            if let Some(r) = remapped.get(&(job, index)) {
-                return Ok(*r);
-            }
-            let r = changes.add_remapped(
-                root,
-                buffers,
-                index,
-                &split.source_vertex,
-                max_vertices,
-                is_position,
-            )?;
-            remapped.insert((job, index), r);
-            Ok(r)
+/// What the primitives' edits add to the scene, for the writer.
+#[derive(Default)]
+struct Edits {
+    changes: Changes,
+    /// Per job that was written: its accessors.
+    job_refs: HashMap<usize, JobRefs>,
+    /// Per (job, input accessor): that accessor copied in the order of the job's split
+    /// vertices, so primitives sharing a job also share the copies.
+    remapped: HashMap<(usize, usize), Ref>,
+}
+
+impl Edits {
+    /// The edit that gives `primitive` its job's tangents. When the job split vertices (or
+    /// generated normals, or unrolled a strip), every other attribute, the indices and each
+    /// morph target's members are replaced by copies in the new vertex order. New accessors
+    /// are added in a fixed order (tangents, remapped attributes, normals, indices, then per
+    /// target), which is the order they get in the file.
+    fn edit_primitive(
+        &mut self,
+        scene: &Scene<'_>,
+        primitive: &Node,
+        topology: Topology,
+        job: usize,
+        c: &Computed,
+    ) -> Result<PrimitiveEdit, SceneError> {
+        let split = &c.tangents.split;
+        let keeps = c.keeps_vertices(topology);
+        let refs = self.job_refs.entry(job).or_default();
+        let changes = &mut self.changes;
+        let tangent = *refs
+            .tangent
+            .get_or_insert_with(|| changes.add_floats(&split.vertex_tangents, false));
+        let mut edit = PrimitiveEdit {
+            remove_draco: has_draco(primitive),
+            ..PrimitiveEdit::default()
         };
-    for member in primitive
-        .get("attributes")
-        .and_then(Node::as_object)
-        .unwrap_or(&[])
-    {
-        if member.key == "TANGENT" || keeps {
-            continue;
+        if !keeps {
+            let attributes = primitive.get("attributes");
+            edit.attributes =
+                self.remap_members(scene, job, c, attributes, |key| key == "TANGENT")?;
         }
-        if let Some(index) = index_of(&member.value) {
-            let r = remap(index, member.key == "POSITION", changes)?;
-            edit.attributes.push((member.key.clone(), r));
+        edit.attributes.push(("TANGENT".into(), tangent));
+        let refs = self.job_refs.entry(job).or_default();
+        let changes = &mut self.changes;
+        if let Some(normals) = &c.tangents.normals {
+            let r = *refs
+                .normal
+                .get_or_insert_with(|| changes.add_floats(normals, false));
+            edit.attributes.push(("NORMAL".into(), r));
         }
+        if !keeps {
+            let r = *refs.indices.get_or_insert_with(|| {
+                changes.add_indices(&split.indices, split.source_vertex.len())
+            });
+            edit.indices = Some(r);
+            edit.to_triangle_list = topology != Topology::Triangles;
+        }
+        let targets = primitive
+            .get("targets")
+            .and_then(Node::as_array)
+            .unwrap_or(&[]);
+        for (t, target) in targets.iter().enumerate() {
+            edit.targets
+                .push(self.edit_target(scene, job, c, t, target, keeps)?);
+        }
+        Ok(edit)
     }
-    edit.attributes.push(("TANGENT".into(), tangent));
-    if let Some(normals) = &c.tangents.normals {
-        let r = *refs
-            .normal
-            .get_or_insert_with(|| changes.add_floats(normals, false));
-        edit.attributes.push(("NORMAL".into(), r));
-    }
-    if !keeps {
-        let r = *refs
-            .indices
-            .get_or_insert_with(|| changes.add_indices(&split.indices, split.source_vertex.len()));
-        edit.indices = Some(r);
-        edit.to_triangle_list = topology != Topology::Triangles;
-    }
-    let targets = primitive
-        .get("targets")
-        .and_then(Node::as_array)
-        .unwrap_or(&[]);
-    for (t, target) in targets.iter().enumerate() {
+
+    /// One morph target's members: remapped like the base attributes, and its TANGENT deltas
+    /// when the target moves POSITION or NORMAL.
+    fn edit_target(
+        &mut self,
+        scene: &Scene<'_>,
+        job: usize,
+        c: &Computed,
+        t: usize,
+        target: &Node,
+        keeps: bool,
+    ) -> Result<Vec<(String, Ref)>, SceneError> {
         let delta = c.target_deltas.get(t).and_then(Option::as_ref);
         let mut set = Vec::new();
         if !keeps {
-            for member in target.as_object().unwrap_or(&[]) {
-                if member.key == "TANGENT" && delta.is_some() {
-                    continue;
-                }
-                if let Some(index) = index_of(&member.value) {
-                    let r = remap(index, member.key == "POSITION", changes)?;
-                    set.push((member.key.clone(), r));
-                }
-            }
+            let skip_tangent = delta.is_some();
+            set = self.remap_members(scene, job, c, Some(target), |key| {
+                skip_tangent && key == "TANGENT"
+            })?;
         }
         if let Some(deltas) = delta {
+            let changes = &mut self.changes;
+            let refs = self.job_refs.entry(job).or_default();
             let r = *refs
                 .deltas
                 .entry(t)
                 .or_insert_with(|| changes.add_floats(deltas, false));
             set.push(("TANGENT".into(), r));
         }
-        edit.targets.push(set);
+        Ok(set)
     }
-    Ok(edit)
+
+    /// The members of `object` (attribute name → accessor) as copies in the job's split vertex
+    /// order, in the object's own order, leaving out those `skip` names.
+    fn remap_members(
+        &mut self,
+        scene: &Scene<'_>,
+        job: usize,
+        c: &Computed,
+        object: Option<&Node>,
+        skip: impl Fn(&str) -> bool,
+    ) -> Result<Vec<(String, Ref)>, SceneError> {
+        let mut members = Vec::new();
+        for member in object.and_then(Node::as_object).unwrap_or(&[]) {
+            if skip(&member.key) {
+                continue;
+            }
+            let Some(index) = member.value.as_u64().and_then(|i| usize::try_from(i).ok()) else {
+                continue;
+            };
+            let r = match self.remapped.get(&(job, index)) {
+                Some(r) => *r,
+                None => {
+                    let r = self.changes.add_remapped(
+                        scene.root,
+                        scene.buffers,
+                        index,
+                        &c.tangents.split.source_vertex,
+                        scene.max_vertices,
+                        member.key == "POSITION",
+                    )?;
+                    self.remapped.insert((job, index), r);
+                    r
+                }
+            };
+            members.push((member.key.clone(), r));
+        }
+        Ok(members)
+    }
 }

@@ -12,31 +12,14 @@
 
 use super::accessor::{self, ComponentType, ElementType};
 use super::glb;
-use super::load::{BufferSource, Container, Loaded, Resources};
+use super::load::{Buffer, BufferSource, Container, Loaded, Resources};
 use super::refs::{self, Owner};
-use crate::scene::error::SceneError;
+use crate::scene::OutputFormat;
+use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::Dropped;
 use crate::scene::uri;
 use std::collections::{BTreeMap, HashMap};
 use tspace_json::{self as json, Document, Editor, Node};
-
-/// The container to write.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum OutputFormat {
-    #[default]
-    Glb,
-    /// `.gltf` JSON with the buffer embedded as a `data:` URI.
-    GltfEmbedded,
-}
-
-impl OutputFormat {
-    pub fn name(self) -> &'static str {
-        match self {
-            OutputFormat::Glb => "glb",
-            OutputFormat::GltfEmbedded => "gltf",
-        }
-    }
-}
 
 /// An accessor in the output: one of the input's, or one this write adds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -208,8 +191,8 @@ impl Changes {
         let mut data = vec![0u8; source.len() * stride];
         for (slot, &s) in data.chunks_exact_mut(stride).zip(source) {
             let element = raw.element(s as usize).ok_or_else(|| {
-                SceneError::malformed(
-                    "invalid-primitive",
+                SceneError::new(
+                    ProblemCode::InvalidPrimitive,
                     format!(
                         "accessors[{index}] has {} elements but vertex {s} is used",
                         raw.len()
@@ -316,8 +299,7 @@ pub struct Written {
 fn edit_error(error: json::EditError) -> SceneError {
     // Edits are made from the document's own nodes; failing here is a bug, reported as such.
     SceneError::new(
-        crate::scene::error::ErrorClass::Unprocessable,
-        "internal-edit",
+        ProblemCode::InternalEdit,
         format!("tspace could not edit the document: {error}"),
     )
 }
@@ -347,7 +329,9 @@ fn sniff_image(bytes: &[u8]) -> Option<&'static str> {
     }
 }
 
-/// Writes the scene with `changes` applied.
+/// Writes the scene with `changes` applied: find what the edits leave unreferenced and whether
+/// it may go, gather the images a GLB must carry, lay out the one output buffer, edit the JSON
+/// to match it, and emit the container.
 pub fn write(
     loaded: &Loaded<'_>,
     changes: &Changes,
@@ -356,34 +340,125 @@ pub fn write(
 ) -> Result<Written, SceneError> {
     let root = loaded.doc.root();
     let mut warnings = Vec::new();
-    let old_accessor_count = root
+    let references = References::of(root);
+    let orphans = Orphans::find(root, &references, changes);
+    let (dropping, kept_because) = match may_drop_orphans(root, &orphans) {
+        Ok(dropping) => (dropping, None),
+        Err(why) => (false, Some(why)),
+    };
+    let numbering = Numbering::new(&orphans, dropping);
+    let buffers = BufferMap::new(&loaded.buffers);
+    let images = match format {
+        OutputFormat::Glb => embed_images(root, resources, &mut warnings),
+        OutputFormat::GltfEmbedded => Images::default(),
+    };
+    let layout = lay_out_buffer(root, &buffers, &numbering, changes, &images, format)?;
+
+    let mut editor = Editor::new(&loaded.doc);
+    drop_accessors(&mut editor, root, &numbering)?;
+    renumber_view_refs(&mut editor, &references, &numbering, changes)?;
+    append_accessors(&mut editor, root, &numbering, changes)?;
+    edit_buffer_views(&mut editor, root, &buffers, &numbering, &layout)?;
+    append_buffer_views(&mut editor, root, changes, &images, &layout)?;
+    renumber_accessor_refs(&mut editor, &references, &numbering, changes)?;
+    edit_primitives(&mut editor, root, &numbering, changes, &mut warnings)?;
+    point_images_at_views(
+        &mut editor,
+        root,
+        &images,
+        numbering.kept_views + changes.views.len(),
+    )?;
+    edit_buffers(
+        &mut editor,
+        loaded,
+        &buffers,
+        &layout,
+        format,
+        &mut warnings,
+    )?;
+    let json_text = editor.render().map_err(edit_error)?;
+
+    let bytes = emit(loaded, json_text, &layout, format)?;
+    let dropped = Dropped {
+        accessors: (numbering.accessor_map.len() - numbering.kept_accessors) as u64,
+        buffer_views: (numbering.view_map.len() - numbering.kept_views) as u64,
+        kept_because,
+    };
+    Ok(Written {
+        bytes,
+        embedded_image_bytes: images.external_bytes,
+        dropped,
+        warnings,
+    })
+}
+
+/// Every index reference to an accessor or a buffer view in the input, found once: the first
+/// phases read them to find orphans, the editing phases renumber them.
+struct References<'d> {
+    accessors: Vec<(Owner, &'d Node, usize)>,
+    views: Vec<(Owner, &'d Node, usize)>,
+}
+
+impl<'d> References<'d> {
+    fn of(root: &'d Node) -> Self {
+        References {
+            accessors: refs::accessor_refs(root),
+            views: refs::view_refs(root),
+        }
+    }
+}
+
+/// The input's accessors and buffer views that something referred to and nothing will once
+/// the edits are made (a split primitive's old attributes, and their views).
+struct Orphans {
+    accessors: Vec<bool>,
+    views: Vec<bool>,
+}
+
+impl Orphans {
+    fn find(root: &Node, references: &References<'_>, changes: &Changes) -> Orphans {
+        let accessors = orphan_accessors(root, &references.accessors, changes);
+        let views = orphan_views(root, &references.views, changes, &accessors);
+        Orphans { accessors, views }
+    }
+
+    fn count(&self) -> usize {
+        self.accessors
+            .iter()
+            .chain(&self.views)
+            .filter(|&&o| o)
+            .count()
+    }
+}
+
+fn is_edited(owner: Owner, changes: &Changes) -> bool {
+    matches!(owner, Owner::Primitive(m, p) if changes.primitives.contains_key(&(m, p)))
+}
+
+/// Referenced before, and after the edits by neither an unedited owner nor an edited
+/// primitive's final members.
+fn orphan_accessors(
+    root: &Node,
+    references: &[(Owner, &Node, usize)],
+    changes: &Changes,
+) -> Vec<bool> {
+    let count = root
         .get("accessors")
         .and_then(Node::as_array)
         .map_or(0, <[Node]>::len);
-    let old_view_list = root
-        .get("bufferViews")
-        .and_then(Node::as_array)
-        .unwrap_or(&[]);
-    let old_view_count = old_view_list.len();
-
-    // Which accessors the edits leave without a reference.
-    let accessor_refs = refs::accessor_refs(root);
-    let mut referenced_before = vec![false; old_accessor_count];
-    let mut referenced_after = vec![false; old_accessor_count];
-    for &(owner, _, i) in &accessor_refs {
+    let mut referenced_before = vec![false; count];
+    let mut referenced_after = vec![false; count];
+    for &(owner, _, i) in references {
         if let Some(r) = referenced_before.get_mut(i) {
             *r = true;
         }
-        let edited =
-            matches!(owner, Owner::Primitive(m, p) if changes.primitives.contains_key(&(m, p)));
-        if !edited {
+        if !is_edited(owner, changes) {
             if let Some(r) = referenced_after.get_mut(i) {
                 *r = true;
             }
         }
     }
-    let final_members = final_primitive_members(root, changes);
-    for members in final_members.values() {
+    for members in final_primitive_members(root, changes).values() {
         for (_, r) in members {
             if let Ref::Old(i) = r {
                 if let Some(a) = referenced_after.get_mut(*i) {
@@ -392,216 +467,284 @@ pub fn write(
             }
         }
     }
-    let orphan_accessor: Vec<bool> = referenced_before
+    referenced_before
         .iter()
         .zip(&referenced_after)
         .map(|(b, a)| *b && !*a)
-        .collect();
+        .collect()
+}
 
-    let view_refs = refs::view_refs(root);
-    let mut view_before = vec![false; old_view_count];
-    let mut view_after = vec![false; old_view_count];
-    for &(owner, _, v) in &view_refs {
+/// Referenced before, and after the edits only by orphan accessors or by the Draco extensions
+/// the edits remove.
+fn orphan_views(
+    root: &Node,
+    references: &[(Owner, &Node, usize)],
+    changes: &Changes,
+    orphan_accessor: &[bool],
+) -> Vec<bool> {
+    let count = root
+        .get("bufferViews")
+        .and_then(Node::as_array)
+        .map_or(0, <[Node]>::len);
+    let mut view_before = vec![false; count];
+    let mut view_after = vec![false; count];
+    for &(owner, _, v) in references {
         if let Some(b) = view_before.get_mut(v) {
             *b = true;
         }
-        let dead = match owner {
-            Owner::Accessor(a) => orphan_accessor.get(a).copied().unwrap_or(false),
-            Owner::Primitive(m, p) => changes
-                .primitives
-                .get(&(m, p))
-                .is_some_and(|e| e.remove_draco),
-            _ => false,
-        };
-        if !dead {
+        if !reference_dies(owner, changes, orphan_accessor) {
             if let Some(a) = view_after.get_mut(v) {
                 *a = true;
             }
         }
     }
-    let orphan_view: Vec<bool> = view_before
+    view_before
         .iter()
         .zip(&view_after)
         .map(|(b, a)| *b && !*a)
-        .collect();
+        .collect()
+}
 
-    let unknown = refs::unknown_extensions(root);
+/// Whether a view reference goes away with its owner: an orphan accessor, or a primitive whose
+/// Draco extension is removed.
+fn reference_dies(owner: Owner, changes: &Changes, orphan_accessor: &[bool]) -> bool {
+    match owner {
+        Owner::Accessor(a) => orphan_accessor.get(a).copied().unwrap_or(false),
+        Owner::Primitive(m, p) => changes
+            .primitives
+            .get(&(m, p))
+            .is_some_and(|e| e.remove_draco),
+        _ => false,
+    }
+}
+
+/// Whether the orphans may be dropped (`Ok(false)` when there are none). They stay, and the
+/// error says why for the report, when an extension tspace does not know might refer to them,
+/// or when meshopt-compressed views, which tspace does not move, are in the file.
+fn may_drop_orphans(root: &Node, orphans: &Orphans) -> Result<bool, String> {
+    if orphans.count() == 0 {
+        return Ok(false);
+    }
     let meshopt = root
         .get("extensionsUsed")
         .and_then(Node::as_array)
         .unwrap_or(&[])
         .iter()
         .any(|e| e.as_str() == Some("EXT_meshopt_compression"));
-    let orphans = orphan_accessor
-        .iter()
-        .chain(&orphan_view)
-        .filter(|&&o| o)
-        .count();
-    let mut dropped = Dropped::default();
-    let dropping = orphans > 0 && unknown.is_empty() && !meshopt;
-    if orphans > 0 && !dropping {
-        dropped.kept_because = Some(if meshopt {
+    if meshopt {
+        return Err(
             "the file uses EXT_meshopt_compression, whose compressed data tspace does not move"
-                .into()
-        } else {
-            format!(
-                "the file uses {}, which may refer to accessors or buffer views in ways tspace does not know",
-                unknown.join(", ")
-            )
-        });
+                .into(),
+        );
     }
+    let unknown = refs::unknown_extensions(root);
+    if !unknown.is_empty() {
+        return Err(format!(
+            "the file uses {}, which may refer to accessors or buffer views in ways tspace does not know",
+            unknown.join(", ")
+        ));
+    }
+    Ok(true)
+}
 
-    // Index maps for the output.
-    let keep_accessor = |i: usize| !(dropping && orphan_accessor.get(i).copied().unwrap_or(false));
-    let keep_view = |v: usize| !(dropping && orphan_view.get(v).copied().unwrap_or(false));
-    let mut accessor_map = vec![usize::MAX; old_accessor_count];
-    let mut next = 0;
-    for (i, slot) in accessor_map.iter_mut().enumerate() {
-        if keep_accessor(i) {
-            *slot = next;
-            next += 1;
+/// Where each input accessor and view lands in the output: kept ones are renumbered in order
+/// when orphans are dropped, and new ones follow the kept ones.
+struct Numbering {
+    dropping: bool,
+    /// Per input accessor: its output index, or `usize::MAX` when dropped.
+    accessor_map: Vec<usize>,
+    view_map: Vec<usize>,
+    kept_accessors: usize,
+    kept_views: usize,
+}
+
+impl Numbering {
+    fn new(orphans: &Orphans, dropping: bool) -> Numbering {
+        // Dropped entries are marked usize::MAX; the rest are numbered in order.
+        let map = |orphan: &[bool]| -> (Vec<usize>, usize) {
+            let mut next = 0;
+            let map = orphan
+                .iter()
+                .map(|&o| {
+                    if dropping && o {
+                        usize::MAX
+                    } else {
+                        next += 1;
+                        next - 1
+                    }
+                })
+                .collect();
+            (map, next)
+        };
+        let (accessor_map, kept_accessors) = map(&orphans.accessors);
+        let (view_map, kept_views) = map(&orphans.views);
+        Numbering {
+            dropping,
+            accessor_map,
+            view_map,
+            kept_accessors,
+            kept_views,
         }
     }
-    let kept_accessors = next;
-    let mut view_map = vec![usize::MAX; old_view_count];
-    next = 0;
-    for (v, slot) in view_map.iter_mut().enumerate() {
-        if keep_view(v) {
-            *slot = next;
-            next += 1;
+
+    fn keeps_accessor(&self, i: usize) -> bool {
+        self.accessor_map.get(i).is_none_or(|&n| n != usize::MAX)
+    }
+
+    fn keeps_view(&self, v: usize) -> bool {
+        self.view_map.get(v).is_none_or(|&n| n != usize::MAX)
+    }
+
+    /// An accessor's index in the output.
+    fn accessor(&self, r: Ref) -> usize {
+        match r {
+            Ref::Old(i) => self.accessor_map.get(i).copied().unwrap_or(i),
+            Ref::New(k) => self.kept_accessors + k,
         }
     }
-    let kept_views = next;
-    dropped.accessors = (old_accessor_count - kept_accessors) as u64;
-    dropped.buffer_views = (old_view_count - kept_views) as u64;
-    let final_accessor = |r: Ref| match r {
-        Ref::Old(i) => accessor_map.get(i).copied().unwrap_or(i),
-        Ref::New(k) => kept_accessors + k,
-    };
 
-    // Buffers: every buffer with data goes into output buffer 0; empty ones follow, in order.
-    let buffers = &loaded.buffers;
-    let buffer_list = root.get("buffers").and_then(Node::as_array).unwrap_or(&[]);
-    let has_data = |b: usize| {
-        buffers
+    /// An input view's index in the output (its own when it is out of range: a reference
+    /// left as it was).
+    fn view(&self, v: usize) -> usize {
+        self.view_map.get(v).copied().unwrap_or(v)
+    }
+}
+
+/// Where the input's buffers go: every buffer with data into output buffer 0; those without
+/// (meshopt fallbacks) after it, in order.
+struct BufferMap<'l> {
+    buffers: &'l [Buffer<'l>],
+    /// Per input buffer: its output index.
+    map: Vec<usize>,
+}
+
+impl<'l> BufferMap<'l> {
+    fn new(buffers: &'l [Buffer<'l>]) -> Self {
+        let mut empty_count = 0;
+        let map = buffers
+            .iter()
+            .map(|b| {
+                if b.source == BufferSource::Empty {
+                    empty_count += 1;
+                    empty_count // after the merged buffer
+                } else {
+                    0
+                }
+            })
+            .collect();
+        BufferMap { buffers, map }
+    }
+
+    fn has_data(&self, b: usize) -> bool {
+        self.buffers
             .get(b)
             .is_some_and(|b| b.source != BufferSource::Empty)
-    };
-    let mut buffer_map = vec![0usize; buffers.len()];
-    let mut empty_count = 0;
-    for (b, slot) in buffer_map.iter_mut().enumerate() {
-        if !has_data(b) {
-            empty_count += 1;
-            *slot = empty_count; // after the merged buffer
-        }
     }
 
-    // Images to embed: a GLB must carry its images, so external ones become buffer views.
-    let mut image_views: Vec<(usize, usize, &'static str)> = Vec::new(); // (image, new view, mime)
-    // Bytes of the embedded images that came from outside the file (not data: URIs), for the
-    // report's input size.
-    let mut embedded_image_bytes = 0u64;
-    let mut image_data: Vec<Vec<u8>> = Vec::new();
-    if format == OutputFormat::Glb {
-        for (i, image) in root
-            .get("images")
-            .and_then(Node::as_array)
-            .unwrap_or(&[])
-            .iter()
-            .enumerate()
-        {
-            let Some(u) = image.get("uri").and_then(Node::as_str) else {
-                continue;
-            };
-            // A data: URI in a GLB draws a validator warning; its bytes belong in the BIN chunk.
-            let (fetched, external) = match uri::decode_data_uri(u) {
-                Some(Ok(data)) => (Ok(std::borrow::Cow::Owned(data.bytes)), false),
-                Some(Err(_)) => continue,
-                None => (resources.fetch(u), true),
-            };
-            match fetched {
-                Ok(bytes) => {
-                    let mime = image
-                        .get("mimeType")
-                        .and_then(Node::as_str)
-                        .and_then(|m| match m {
-                            "image/png" => Some("image/png"),
-                            "image/jpeg" => Some("image/jpeg"),
-                            "image/webp" => Some("image/webp"),
-                            "image/ktx2" => Some("image/ktx2"),
-                            _ => None,
-                        })
-                        .or_else(|| sniff_image(&bytes));
-                    match mime {
-                        Some(mime) => {
-                            if external {
-                                embedded_image_bytes += bytes.len() as u64;
-                            }
-                            image_views.push((i, image_data.len(), mime));
-                            image_data.push(bytes.into_owned());
-                        }
-                        None => warnings.push(format!(
-                            "images[{i}] ({u}) is not PNG, JPEG, WebP or KTX2 by its first bytes; it stays an external reference"
-                        )),
-                    }
-                }
-                Err(_) => warnings.push(format!(
-                    "images[{i}] refers to {u:?}, which was not supplied; the GLB keeps the reference, so that file must travel with it"
-                )),
-            }
-        }
+    fn output_index(&self, b: usize) -> usize {
+        self.map.get(b).copied().unwrap_or(0)
     }
+}
 
-    // Lay out the output buffer: old data first, then new views, then embedded images.
+/// The images a GLB embeds, as new views after the changes' own.
+#[derive(Default)]
+struct Images {
+    /// `(image, index into data, MIME type)`.
+    views: Vec<(usize, usize, &'static str)>,
+    data: Vec<Vec<u8>>,
+    /// Bytes of the embedded images that came from outside the file (not `data:` URIs), for
+    /// the report's input size.
+    external_bytes: u64,
+}
+
+/// A GLB must carry its images, so external ones (and `data:` URIs, which draw a validator
+/// warning in a GLB) become buffer views. An image that was not supplied, or is not a format
+/// glTF knows, stays a reference, with a warning.
+fn embed_images(root: &Node, resources: &dyn Resources<'_>, warnings: &mut Vec<String>) -> Images {
+    let mut images = Images::default();
+    for (i, image) in root
+        .get("images")
+        .and_then(Node::as_array)
+        .unwrap_or(&[])
+        .iter()
+        .enumerate()
+    {
+        let Some(u) = image.get("uri").and_then(Node::as_str) else {
+            continue;
+        };
+        let (fetched, external) = match uri::decode_data_uri(u) {
+            Some(Ok(data)) => (Ok(std::borrow::Cow::Owned(data.bytes)), false),
+            Some(Err(_)) => continue,
+            None => (resources.fetch(u), true),
+        };
+        let Ok(bytes) = fetched else {
+            warnings.push(format!(
+                "images[{i}] refers to {u:?}, which was not supplied; the GLB keeps the reference, so that file must travel with it"
+            ));
+            continue;
+        };
+        let declared = image
+            .get("mimeType")
+            .and_then(Node::as_str)
+            .and_then(|m| match m {
+                "image/png" => Some("image/png"),
+                "image/jpeg" => Some("image/jpeg"),
+                "image/webp" => Some("image/webp"),
+                "image/ktx2" => Some("image/ktx2"),
+                _ => None,
+            });
+        let Some(mime) = declared.or_else(|| sniff_image(&bytes)) else {
+            warnings.push(format!(
+                "images[{i}] ({u}) is not PNG, JPEG, WebP or KTX2 by its first bytes; it stays an external reference"
+            ));
+            continue;
+        };
+        if external {
+            images.external_bytes += bytes.len() as u64;
+        }
+        images.views.push((i, images.data.len(), mime));
+        images.data.push(bytes.into_owned());
+    }
+    images
+}
+
+/// The output buffer's bytes and where every view lies in it.
+struct Layout {
+    bin: Vec<u8>,
+    /// Per input view: its new byte offset, when its buffer has data.
+    view_position: Vec<Option<usize>>,
+    /// Per new view (the changes' own, then the images): its byte offset.
+    new_view_offsets: Vec<usize>,
+    /// Whether the output has a buffer with data (a GLB's BIN chunk).
+    bin_needed: bool,
+}
+
+/// Old data first (only the kept views when orphans are dropped, else every buffer whole),
+/// then the new views, then the embedded images.
+fn lay_out_buffer(
+    root: &Node,
+    buffers: &BufferMap<'_>,
+    numbering: &Numbering,
+    changes: &Changes,
+    images: &Images,
+    format: OutputFormat,
+) -> Result<Layout, SceneError> {
+    let old_views = root
+        .get("bufferViews")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
     let mut bin: Vec<u8> = Vec::new();
-    let mut view_position: Vec<Option<usize>> = vec![None; old_view_count];
-    if dropping {
-        for (v, view) in old_view_list.iter().enumerate() {
-            let b = usize_of(view.get("buffer"));
-            if !keep_view(v) || !has_data(b) {
-                continue;
-            }
-            let offset = usize_of(view.get("byteOffset"));
-            let length = usize_of(view.get("byteLength"));
-            let Some(bytes) = buffers
-                .get(b)
-                .and_then(|b| b.bytes.get(offset..offset.saturating_add(length)))
-            else {
-                return Err(SceneError::malformed(
-                    "invalid-buffer-view",
-                    format!("bufferViews[{v}] lies outside buffers[{b}]"),
-                ));
-            };
-            // Keeping the offset modulo 16 keeps every alignment the input had.
-            let at = align(bin.len(), 16) + offset % 16;
-            bin.resize(at, 0);
-            bin.extend_from_slice(bytes);
-            view_position[v] = Some(at);
-        }
+    let view_position = if numbering.dropping {
+        copy_kept_views(&mut bin, old_views, buffers, numbering)?
     } else {
-        let mut base = vec![0usize; buffers.len()];
-        for (b, buffer) in buffers.iter().enumerate() {
-            if has_data(b) {
-                let at = align(bin.len(), 16);
-                bin.resize(at, 0);
-                base[b] = at;
-                bin.extend_from_slice(&buffer.bytes);
-            }
-        }
-        for (v, view) in old_view_list.iter().enumerate() {
-            let b = usize_of(view.get("buffer"));
-            if has_data(b) {
-                view_position[v] =
-                    Some(base.get(b).copied().unwrap_or(0) + usize_of(view.get("byteOffset")));
-            }
-        }
-    }
-    let mut new_view_offsets = Vec::with_capacity(changes.views.len() + image_data.len());
+        copy_whole_buffers(&mut bin, old_views, buffers)
+    };
+    let mut new_view_offsets = Vec::with_capacity(changes.views.len() + images.data.len());
     for data in changes
         .views
         .iter()
         .map(|v| &v.data)
-        .chain(image_data.iter())
+        .chain(images.data.iter())
     {
         let at = align(bin.len(), 4);
         bin.resize(at, 0);
@@ -611,42 +754,132 @@ pub fn write(
     // In a GLB, a first buffer without a uri is the BIN chunk. When the only buffers are empty
     // ones (an EXT_meshopt_compression fallback, or a `.gltf` buffer with no uri), a BIN chunk
     // must still lead, or the first empty buffer would be read as it (found by fuzzing).
-    let bin_needed = buffers.iter().enumerate().any(|(b, _)| has_data(b))
+    let all = buffers.buffers;
+    let bin_needed = (0..all.len()).any(|b| buffers.has_data(b))
         || !new_view_offsets.is_empty()
-        || (format == OutputFormat::Glb && buffers.iter().any(|b| b.source == BufferSource::Empty));
+        || (format == OutputFormat::Glb && all.iter().any(|b| b.source == BufferSource::Empty));
     // Every buffer declares at least one byte, which its data must hold.
     if bin_needed && bin.is_empty() {
         bin.push(0);
     }
+    Ok(Layout {
+        bin,
+        view_position,
+        new_view_offsets,
+        bin_needed,
+    })
+}
 
-    let mut editor = Editor::new(&loaded.doc);
+/// Copies the kept views one by one, so that dropped ones leave no dead bytes.
+fn copy_kept_views(
+    bin: &mut Vec<u8>,
+    old_views: &[Node],
+    buffers: &BufferMap<'_>,
+    numbering: &Numbering,
+) -> Result<Vec<Option<usize>>, SceneError> {
+    let mut view_position = vec![None; old_views.len()];
+    for (v, view) in old_views.iter().enumerate() {
+        let b = usize_of(view.get("buffer"));
+        if !numbering.keeps_view(v) || !buffers.has_data(b) {
+            continue;
+        }
+        let offset = usize_of(view.get("byteOffset"));
+        let length = usize_of(view.get("byteLength"));
+        let Some(bytes) = buffers
+            .buffers
+            .get(b)
+            .and_then(|b| b.bytes.get(offset..offset.saturating_add(length)))
+        else {
+            return Err(SceneError::new(
+                ProblemCode::InvalidBufferView,
+                format!("bufferViews[{v}] lies outside buffers[{b}]"),
+            ));
+        };
+        // Keeping the offset modulo 16 keeps every alignment the input had.
+        let at = align(bin.len(), 16) + offset % 16;
+        bin.resize(at, 0);
+        bin.extend_from_slice(bytes);
+        view_position[v] = Some(at);
+    }
+    Ok(view_position)
+}
 
-    // Accessors: drop, renumber views, append.
+/// Copies every buffer with data whole, each on a 16-byte boundary; views move with theirs.
+fn copy_whole_buffers(
+    bin: &mut Vec<u8>,
+    old_views: &[Node],
+    buffers: &BufferMap<'_>,
+) -> Vec<Option<usize>> {
+    let mut base = vec![0usize; buffers.buffers.len()];
+    for (b, buffer) in buffers.buffers.iter().enumerate() {
+        if buffers.has_data(b) {
+            let at = align(bin.len(), 16);
+            bin.resize(at, 0);
+            base[b] = at;
+            bin.extend_from_slice(&buffer.bytes);
+        }
+    }
+    old_views
+        .iter()
+        .map(|view| {
+            let b = usize_of(view.get("buffer"));
+            buffers
+                .has_data(b)
+                .then(|| base.get(b).copied().unwrap_or(0) + usize_of(view.get("byteOffset")))
+        })
+        .collect()
+}
+
+fn drop_accessors(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    numbering: &Numbering,
+) -> Result<(), SceneError> {
     if let Some(list) = root.get("accessors") {
-        for a in (0..old_accessor_count).filter(|&a| !keep_accessor(a)) {
+        for a in (0..numbering.accessor_map.len()).filter(|&a| !numbering.keeps_accessor(a)) {
             editor.remove_element(list, a).map_err(edit_error)?;
         }
     }
-    for &(owner, node, v) in &view_refs {
+    Ok(())
+}
+
+/// Every surviving reference to a buffer view, renumbered (references that die with their
+/// owner are left to go with it).
+fn renumber_view_refs(
+    editor: &mut Editor<'_, '_>,
+    references: &References<'_>,
+    numbering: &Numbering,
+    changes: &Changes,
+) -> Result<(), SceneError> {
+    for &(owner, node, v) in &references.views {
         let alive = match owner {
-            Owner::Accessor(a) => keep_accessor(a),
+            Owner::Accessor(a) => numbering.keeps_accessor(a),
             Owner::Primitive(m, p) => !changes
                 .primitives
                 .get(&(m, p))
                 .is_some_and(|e| e.remove_draco),
             _ => true,
         };
-        let target = view_map.get(v).copied().unwrap_or(v);
+        let target = numbering.view(v);
         if alive && target != v {
             editor
                 .replace(node, target.to_string())
                 .map_err(edit_error)?;
         }
     }
+    Ok(())
+}
+
+fn append_accessors(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    numbering: &Numbering,
+    changes: &Changes,
+) -> Result<(), SceneError> {
     for accessor in &changes.accessors {
         let mut text = format!(
             "{{\"bufferView\":{},\"componentType\":{},",
-            kept_views + accessor.view,
+            numbering.kept_views + accessor.view,
             accessor.component_type.code()
         );
         if accessor.normalized {
@@ -665,52 +898,73 @@ pub fn write(
             .push_to_array_member(root, "accessors", text)
             .map_err(edit_error)?;
     }
+    Ok(())
+}
 
-    // Buffer views: drop, re-point at the output buffer, append.
-    if let Some(list) = root.get("bufferViews") {
-        for (v, view) in old_view_list.iter().enumerate() {
-            if !keep_view(v) {
-                editor.remove_element(list, v).map_err(edit_error)?;
-                continue;
+/// Drops the orphan views and points the kept ones at their place in the output buffer.
+fn edit_buffer_views(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    buffers: &BufferMap<'_>,
+    numbering: &Numbering,
+    layout: &Layout,
+) -> Result<(), SceneError> {
+    let Some(list) = root.get("bufferViews") else {
+        return Ok(());
+    };
+    for (v, view) in list.as_array().unwrap_or(&[]).iter().enumerate() {
+        if !numbering.keeps_view(v) {
+            editor.remove_element(list, v).map_err(edit_error)?;
+            continue;
+        }
+        let b = usize_of(view.get("buffer"));
+        let new_buffer = buffers.output_index(b);
+        if new_buffer != b {
+            if let Some(node) = view.get("buffer") {
+                editor
+                    .replace(node, new_buffer.to_string())
+                    .map_err(edit_error)?;
             }
-            let b = usize_of(view.get("buffer"));
-            let new_buffer = buffer_map.get(b).copied().unwrap_or(0);
+        }
+        if let Some(at) = layout.view_position.get(v).copied().flatten() {
+            if at != usize_of(view.get("byteOffset")) {
+                editor
+                    .set_member(view, "byteOffset", at.to_string())
+                    .map_err(edit_error)?;
+            }
+        }
+        // The meshopt extension names a buffer too.
+        if let Some(node) = view
+            .get("extensions")
+            .and_then(|e| e.get("EXT_meshopt_compression"))
+            .and_then(|e| e.get("buffer"))
+        {
+            let b = usize_of(Some(node));
+            let new_buffer = buffers.output_index(b);
             if new_buffer != b {
-                if let Some(node) = view.get("buffer") {
-                    editor
-                        .replace(node, new_buffer.to_string())
-                        .map_err(edit_error)?;
-                }
-            }
-            if let Some(at) = view_position[v] {
-                if at != usize_of(view.get("byteOffset")) {
-                    editor
-                        .set_member(view, "byteOffset", at.to_string())
-                        .map_err(edit_error)?;
-                }
-            }
-            // The meshopt extension names a buffer too.
-            if let Some(node) = view
-                .get("extensions")
-                .and_then(|e| e.get("EXT_meshopt_compression"))
-                .and_then(|e| e.get("buffer"))
-            {
-                let b = usize_of(Some(node));
-                let new_buffer = buffer_map.get(b).copied().unwrap_or(0);
-                if new_buffer != b {
-                    editor
-                        .replace(node, new_buffer.to_string())
-                        .map_err(edit_error)?;
-                }
+                editor
+                    .replace(node, new_buffer.to_string())
+                    .map_err(edit_error)?;
             }
         }
     }
-    let new_view_texts = changes
+    Ok(())
+}
+
+/// The changes' views, then the embedded images', all in output buffer 0.
+fn append_buffer_views(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    changes: &Changes,
+    images: &Images,
+    layout: &Layout,
+) -> Result<(), SceneError> {
+    let new_views = changes
         .views
         .iter()
         .map(|v| (v.data.len(), v.target, v.byte_stride))
-        .chain(image_data.iter().map(|d| (d.len(), None, None)));
-    for ((length, target, stride), offset) in new_view_texts.zip(&new_view_offsets) {
+        .chain(images.data.iter().map(|d| (d.len(), None, None)));
+    for ((length, target, stride), offset) in new_views.zip(&layout.new_view_offsets) {
         let mut text = format!("{{\"buffer\":0,\"byteOffset\":{offset},\"byteLength\":{length}");
         if let Some(stride) = stride {
             text.push_str(&format!(",\"byteStride\":{stride}"));
@@ -723,23 +977,43 @@ pub fn write(
             .push_to_array_member(root, "bufferViews", text)
             .map_err(edit_error)?;
     }
+    Ok(())
+}
 
-    // Accessor references outside the edited primitives.
-    if dropping {
-        for &(owner, node, i) in &accessor_refs {
-            if matches!(owner, Owner::Primitive(m, p) if changes.primitives.contains_key(&(m, p))) {
-                continue;
-            }
-            let target = accessor_map.get(i).copied().unwrap_or(i);
-            if target != i {
-                editor
-                    .replace(node, target.to_string())
-                    .map_err(edit_error)?;
-            }
+/// When accessors were dropped, every reference outside the edited primitives (skins,
+/// animations, extensions tspace knows) follows the renumbering.
+fn renumber_accessor_refs(
+    editor: &mut Editor<'_, '_>,
+    references: &References<'_>,
+    numbering: &Numbering,
+    changes: &Changes,
+) -> Result<(), SceneError> {
+    if !numbering.dropping {
+        return Ok(());
+    }
+    for &(owner, node, i) in &references.accessors {
+        if is_edited(owner, changes) {
+            continue;
+        }
+        let target = numbering.accessor(Ref::Old(i));
+        if target != i {
+            editor
+                .replace(node, target.to_string())
+                .map_err(edit_error)?;
         }
     }
+    Ok(())
+}
 
-    // The edited primitives.
+/// Applies every primitive's edit; when no primitive keeps Draco data, the extension leaves
+/// `extensionsUsed` too.
+fn edit_primitives(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    numbering: &Numbering,
+    changes: &Changes,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
     let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
     let mut draco_left = false;
     for (m, mesh) in meshes.iter().enumerate() {
@@ -758,37 +1032,55 @@ pub fn write(
                 draco_left |= has_draco;
                 continue;
             };
-            apply_primitive_edit(&mut editor, primitive, edit, dropping, &final_accessor)?;
+            apply_primitive_edit(editor, primitive, edit, numbering)?;
             draco_left |= has_draco && !edit.remove_draco;
         }
     }
     if !draco_left {
-        if let Some(used) = root.get("extensionsUsed") {
-            let names = used.as_array().unwrap_or(&[]);
-            for (i, name) in names.iter().enumerate() {
-                if name.as_str() == Some("KHR_draco_mesh_compression") {
-                    // An empty extensionsUsed is invalid: drop the member with its last name.
-                    if names.len() == 1 {
-                        editor
-                            .remove_member(root, "extensionsUsed")
-                            .map_err(edit_error)?;
-                    } else {
-                        editor.remove_element(used, i).map_err(edit_error)?;
-                    }
-                    warnings.push(
-                        "KHR_draco_mesh_compression was removed: the primitives that had it now carry tangents and use their uncompressed data".into(),
-                    );
-                }
+        unlist_draco(editor, root, warnings)?;
+    }
+    Ok(())
+}
+
+fn unlist_draco(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let Some(used) = root.get("extensionsUsed") else {
+        return Ok(());
+    };
+    let names = used.as_array().unwrap_or(&[]);
+    for (i, name) in names.iter().enumerate() {
+        if name.as_str() == Some("KHR_draco_mesh_compression") {
+            // An empty extensionsUsed is invalid: drop the member with its last name.
+            if names.len() == 1 {
+                editor
+                    .remove_member(root, "extensionsUsed")
+                    .map_err(edit_error)?;
+            } else {
+                editor.remove_element(used, i).map_err(edit_error)?;
             }
+            warnings.push(
+                "KHR_draco_mesh_compression was removed: the primitives that had it now carry tangents and use their uncompressed data".into(),
+            );
         }
     }
+    Ok(())
+}
 
-    // Embedded images.
-    let images = root.get("images").and_then(Node::as_array).unwrap_or(&[]);
-    for &(i, data_index, mime) in &image_views {
-        let Some(image) = images.get(i) else { continue };
+/// Embedded images lose their URI and name their view (`first_view`: the first image view).
+fn point_images_at_views(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    images: &Images,
+    first_view: usize,
+) -> Result<(), SceneError> {
+    let list = root.get("images").and_then(Node::as_array).unwrap_or(&[]);
+    for &(i, data_index, mime) in &images.views {
+        let Some(image) = list.get(i) else { continue };
         editor.remove_member(image, "uri").map_err(edit_error)?;
-        let view = kept_views + changes.views.len() + data_index;
+        let view = first_view + data_index;
         editor
             .set_member(image, "bufferView", view.to_string())
             .map_err(edit_error)?;
@@ -798,108 +1090,148 @@ pub fn write(
                 .map_err(edit_error)?;
         }
     }
+    Ok(())
+}
 
-    // The buffers array: the merged buffer first, then the empty ones.
-    let bin_text = match format {
+/// The buffers array: the merged buffer first, then the empty ones. The usual file, one buffer
+/// with data, is edited in place, keeping its layout.
+fn edit_buffers(
+    editor: &mut Editor<'_, '_>,
+    loaded: &Loaded<'_>,
+    buffers: &BufferMap<'_>,
+    layout: &Layout,
+    format: OutputFormat,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let root = loaded.doc.root();
+    let count = buffers.buffers.len();
+    let byte_length = layout.bin.len().max(1);
+    let bin_uri = match format {
         OutputFormat::Glb => None,
         OutputFormat::GltfEmbedded => Some(format!(
             "data:application/octet-stream;base64,{}",
-            base64(&bin)
+            base64(&layout.bin)
         )),
     };
-    let mut entries: Vec<String> = Vec::new();
-    if bin_needed {
-        let first_data = (0..buffers.len()).find(|&b| has_data(b));
-        let merged = match first_data.and_then(|b| buffer_list.get(b)) {
-            Some(original) => {
-                let text = loaded.doc.text(original);
-                let sub = Document::parse(text.as_bytes()).map_err(|e| {
-                    SceneError::malformed("malformed-json", format!("buffers: {e}"))
-                })?;
-                let mut sub_editor = Editor::new(&sub);
-                sub_editor
-                    .set_member(sub.root(), "byteLength", bin.len().max(1).to_string())
-                    .map_err(edit_error)?;
-                match &bin_text {
-                    None => {
-                        sub_editor
-                            .remove_member(sub.root(), "uri")
-                            .map_err(edit_error)?;
-                    }
-                    Some(uri) => sub_editor
-                        .set_member(sub.root(), "uri", json::escape_str(uri))
-                        .map_err(edit_error)?,
-                }
-                sub_editor.render().map_err(edit_error)?
-            }
-            None => match &bin_text {
-                None => format!("{{\"byteLength\":{}}}", bin.len().max(1)),
-                Some(uri) => format!(
-                    "{{\"byteLength\":{},\"uri\":{}}}",
-                    bin.len().max(1),
-                    json::escape_str(uri)
-                ),
-            },
-        };
-        entries.push(merged);
-        let merged_count = (0..buffers.len()).filter(|&b| has_data(b)).count();
-        if merged_count > 1 {
-            warnings.push(format!(
-                "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
-            ));
-        }
-    }
-    for (b, original) in buffer_list.iter().enumerate() {
-        if !has_data(b) {
-            entries.push(loaded.doc.text(original).to_owned());
-        }
-    }
-    let buffers_text = format!("[{}]", entries.join(","));
-    let single = buffers.len() == 1 && has_data(0) && bin_needed;
+    let single = count == 1 && buffers.has_data(0) && layout.bin_needed;
     match root.get("buffers") {
-        // The usual file, one buffer with data: edit it in place, keeping its layout.
         Some(node) if single => {
             if let Some(buffer) = node.index(0) {
-                editor
-                    .set_member(buffer, "byteLength", bin.len().max(1).to_string())
-                    .map_err(edit_error)?;
-                match &bin_text {
-                    None => {
-                        editor.remove_member(buffer, "uri").map_err(edit_error)?;
-                    }
-                    Some(uri) => editor
-                        .set_member(buffer, "uri", json::escape_str(uri))
-                        .map_err(edit_error)?,
+                point_buffer_at_bin(editor, buffer, byte_length, bin_uri.as_deref())?;
+            }
+            Ok(())
+        }
+        node => {
+            let mut entries: Vec<String> = Vec::new();
+            if layout.bin_needed {
+                entries.push(merged_buffer(
+                    loaded,
+                    buffers,
+                    byte_length,
+                    bin_uri.as_deref(),
+                )?);
+                let merged_count = (0..count).filter(|&b| buffers.has_data(b)).count();
+                if merged_count > 1 {
+                    warnings.push(format!(
+                        "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
+                    ));
                 }
             }
+            let list = root.get("buffers").and_then(Node::as_array).unwrap_or(&[]);
+            for (b, original) in list.iter().enumerate() {
+                if !buffers.has_data(b) {
+                    entries.push(loaded.doc.text(original).to_owned());
+                }
+            }
+            let text = format!("[{}]", entries.join(","));
+            match node {
+                Some(node) => editor.replace(node, text).map_err(edit_error),
+                None if !entries.is_empty() => {
+                    editor.set_member(root, "buffers", text).map_err(edit_error)
+                }
+                None => Ok(()),
+            }
         }
-        Some(node) => editor.replace(node, buffers_text).map_err(edit_error)?,
-        None if !entries.is_empty() => editor
-            .set_member(root, "buffers", buffers_text)
-            .map_err(edit_error)?,
-        None => {}
     }
+}
 
-    let json_text = editor.render().map_err(edit_error)?;
-    let bytes = match format {
+/// Sets a buffer's length and URI for the output buffer: no URI in a GLB (it is the BIN chunk),
+/// a `data:` URI in a `.gltf`.
+fn point_buffer_at_bin(
+    editor: &mut Editor<'_, '_>,
+    buffer: &Node,
+    byte_length: usize,
+    bin_uri: Option<&str>,
+) -> Result<(), SceneError> {
+    editor
+        .set_member(buffer, "byteLength", byte_length.to_string())
+        .map_err(edit_error)?;
+    match bin_uri {
+        None => {
+            editor.remove_member(buffer, "uri").map_err(edit_error)?;
+        }
+        Some(uri) => editor
+            .set_member(buffer, "uri", json::escape_str(uri))
+            .map_err(edit_error)?,
+    }
+    Ok(())
+}
+
+/// The merged buffer's entry: the first buffer with data, edited (its name and extras kept),
+/// or a new entry when none had data.
+fn merged_buffer(
+    loaded: &Loaded<'_>,
+    buffers: &BufferMap<'_>,
+    byte_length: usize,
+    bin_uri: Option<&str>,
+) -> Result<String, SceneError> {
+    let list = loaded
+        .doc
+        .root()
+        .get("buffers")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let first_data = (0..buffers.buffers.len()).find(|&b| buffers.has_data(b));
+    match first_data.and_then(|b| list.get(b)) {
+        Some(original) => {
+            let text = loaded.doc.text(original);
+            let sub = Document::parse(text.as_bytes()).map_err(|e| {
+                SceneError::new(ProblemCode::MalformedJson, format!("buffers: {e}"))
+            })?;
+            let mut sub_editor = Editor::new(&sub);
+            point_buffer_at_bin(&mut sub_editor, sub.root(), byte_length, bin_uri)?;
+            sub_editor.render().map_err(edit_error)
+        }
+        None => Ok(match bin_uri {
+            None => format!("{{\"byteLength\":{byte_length}}}"),
+            Some(uri) => format!(
+                "{{\"byteLength\":{byte_length},\"uri\":{}}}",
+                json::escape_str(uri)
+            ),
+        }),
+    }
+}
+
+/// The container: a GLB (keeping the input GLB's chunks after BIN), or the `.gltf` JSON.
+fn emit(
+    loaded: &Loaded<'_>,
+    json_text: String,
+    layout: &Layout,
+    format: OutputFormat,
+) -> Result<Vec<u8>, SceneError> {
+    match format {
         OutputFormat::Glb => glb::write(
             json_text.as_bytes(),
-            bin_needed.then_some(bin.as_slice()),
+            layout.bin_needed.then_some(layout.bin.as_slice()),
             if loaded.container == Container::Glb {
                 &loaded.other_chunks
             } else {
                 &[]
             },
         )
-        .map_err(|e| SceneError::too_large("output-too-large", format!("the output {e}")))?,
-        OutputFormat::GltfEmbedded => json_text.into_bytes(),
-    };
-    Ok(Written {
-        bytes,
-        embedded_image_bytes,
-        dropped,
-        warnings,
-    })
+        .map_err(|e| SceneError::new(ProblemCode::OutputTooLarge, format!("the output {e}"))),
+        OutputFormat::GltfEmbedded => Ok(json_text.into_bytes()),
+    }
 }
 
 /// Each edited primitive's accessor references after the edit, `(member path, accessor)`.
@@ -961,13 +1293,16 @@ fn final_primitive_members(
     out
 }
 
+/// Sets the members the edit names and, when accessors were dropped, renumbers the ones it
+/// leaves alone.
 fn apply_primitive_edit(
     editor: &mut Editor<'_, '_>,
     primitive: &Node,
     edit: &PrimitiveEdit,
-    dropping: bool,
-    final_accessor: &dyn Fn(Ref) -> usize,
+    numbering: &Numbering,
 ) -> Result<(), SceneError> {
+    let dropping = numbering.dropping;
+    let final_accessor = |r: Ref| numbering.accessor(r);
     let set_all = |editor: &mut Editor<'_, '_>,
                    object: &Node,
                    set: &[(String, Ref)]|

@@ -203,7 +203,7 @@ fn tool(what: &str) -> Option<&'static Tool> {
 }
 
 fn find_or_install() -> Result<Tool, String> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = crate::fixtures::workspace_root();
     let node = PathBuf::from("node");
     match Command::new(&node).arg("--version").output() {
         Ok(o) if o.status.success() => {}

@@ -14,8 +14,11 @@ pub struct ServerProcess {
 impl ServerProcess {
     /// Starts `tspace serve --addr 127.0.0.1:0` with `args` and waits for its address line. Its
     /// log lines are collected on a thread, so that a full pipe never blocks the server.
-    pub fn start(args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_tspace"))
+    ///
+    /// `binary` is the caller's `env!("CARGO_BIN_EXE_tspace")`: Cargo tells only the `tspace`
+    /// package's own tests and benches where it built the binary.
+    pub fn start(binary: &str, args: &[&str]) -> Self {
+        let mut child = Command::new(binary)
             .args(["serve", "--addr", "127.0.0.1:0"])
             .args(args)
             .env("TSPACE_LOG", "info")

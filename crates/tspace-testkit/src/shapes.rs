@@ -1,7 +1,6 @@
 //! Generated test meshes whose exact tangent is known in closed form: a UV sphere and a torus.
 //!
-//! Shared by the benchmarks and the tests (`#[path]`-included), so it has no dependencies.
-#![allow(dead_code)]
+//! Shared by the benchmarks and the tests.
 
 use std::f32::consts::PI;
 

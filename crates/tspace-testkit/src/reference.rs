@@ -1,12 +1,5 @@
-//! Helpers shared by the integration tests.
-#![allow(dead_code)]
-
-pub mod meshes;
-pub mod process;
-pub mod scene;
-#[path = "../../benches/shapes.rs"]
-pub mod shapes;
-pub mod validator;
+//! The oracle: `bevy_mikktspace` 1.0, a byte-exact port of the MikkTSpace C reference, run on
+//! an indexed mesh, and what counts as a valid tangent from it.
 
 /// Runs the reference (`bevy_mikktspace` 1.0, a byte-exact port of the C code) on an indexed
 /// mesh. `None` marks corners the reference leaves at its default.
@@ -59,8 +52,6 @@ pub fn reference_tangents(
     g.out
 }
 
-pub use shapes::angle_degrees;
-
 /// Whether the reference's tangent is one we pass through: finite, unit, orthogonal to `normal`.
 pub fn reference_is_valid(t: Option<[f32; 4]>, normal: [f32; 3]) -> bool {
     let Some(t) = t else { return false };
@@ -68,43 +59,4 @@ pub fn reference_is_valid(t: Option<[f32; 4]>, normal: [f32; 3]) -> bool {
     let nl = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
     let d = (t[0] * normal[0] + t[1] * normal[1] + t[2] * normal[2]) / nl;
     t.iter().all(|x| x.is_finite()) && (len2 - 1.0).abs() < 8e-6 && d.abs() < 4e-5
-}
-
-/// The bytes of a file in `fixtures/`.
-pub fn fixture(path: &str) -> Vec<u8> {
-    let full = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures")
-        .join(path);
-    std::fs::read(&full).unwrap_or_else(|e| panic!("fixture {path}: {e}"))
-}
-
-/// The JSON chunk of a GLB, parsed.
-pub fn glb_json(bytes: &[u8]) -> serde_json::Value {
-    let glb = tspace::scene::gltf::glb::parse(bytes).expect("a GLB");
-    serde_json::from_slice(glb.json).expect("JSON")
-}
-
-/// Validates an output with the glTF-Validator (when installed) and asserts it has no errors
-/// but the missing-image ones the fixtures cause on purpose (they ship without their images).
-pub fn assert_valid_output(name: &str, bytes: &[u8]) -> Option<validator::ValidatorReport> {
-    let report = validator::validate(name, bytes)?;
-    eprintln!("validator, {name}: {}", report.summary());
-    for m in &report.messages {
-        eprintln!(
-            "  {:?} {} {:?} {}",
-            m.severity, m.code, m.pointer, m.message
-        );
-    }
-    let errors: Vec<_> = report
-        .messages_of(validator::Severity::Error)
-        .filter(|m| {
-            !(m.code == "IO_ERROR"
-                && m.pointer
-                    .as_deref()
-                    .is_some_and(|p| p.starts_with("/images/")))
-        })
-        .map(|m| format!("{} at {:?}: {}", m.code, m.pointer, m.message))
-        .collect();
-    assert!(errors.is_empty(), "{name}: validator errors {errors:#?}");
-    Some(report)
 }

@@ -2,11 +2,10 @@
 //! damaged with degenerate triangles, slivers, non-finite values, odd normals and odd UVs.
 //!
 //! Everything is built from proptest strategies (not from a seed) so that failures shrink.
-#![allow(dead_code)]
 
 use proptest::prelude::*;
 use proptest::sample::Index;
-use tspace::tangent::MeshInput;
+use tspace_tangent::MeshInput;
 
 /// An owned triangle list, indexed or not.
 #[derive(Clone, Debug, PartialEq)]

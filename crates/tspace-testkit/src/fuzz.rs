@@ -17,16 +17,15 @@
 //! [`gltf`] and [`parts`] come from a cheap hash of the input, so that every mutation may also
 //! change them and the replay stays deterministic.
 
-use crate::scene::gltf::accessor::{self, ElementType};
-use crate::scene::gltf::glb as glb_container;
-use crate::scene::gltf::load::{self, LoadLimits, NoResources};
-use crate::scene::gltf::write::OutputFormat;
-use crate::scene::gltf::{self as scene_gltf, SceneLimits, SceneOptions};
-use crate::scene::input::{self, InputKind};
-use crate::scene::uri::PartSet;
+use crate::invariants;
+use tspace::scene::gltf::accessor::{self, ElementType};
+use tspace::scene::gltf::glb as glb_container;
+use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
+use tspace::scene::input::{self, InputKind};
+use tspace::scene::uri::PartSet;
+use tspace::scene::{OutputFormat, SceneLimits, SceneOptions};
 use tspace_tangent::{
-    self as tangent, CoreError, MeshInput, Method, NormalMode, Options, Tangents, UvOrigin,
-    Weighting,
+    self as tangent, CoreError, MeshInput, Method, NormalMode, Options, UvOrigin, Weighting,
 };
 
 /// Small enough that one input stays fast, large enough for every fixture-sized seed.
@@ -76,7 +75,7 @@ fn scene_options(data: &[u8]) -> SceneOptions {
 }
 
 /// What every successful scene run must give: a written scene that loads again.
-fn check_processed(processed: &scene_gltf::Processed) {
+fn check_processed(processed: &tspace::scene::Processed) {
     if let Some(bytes) = &processed.bytes {
         if let Err(e) = load::load(
             bytes,
@@ -395,152 +394,8 @@ fn core_mesh(data: &[u8]) -> Option<CoreMesh> {
     })
 }
 
-const UNIT_TOLERANCE: f64 = 1e-5;
-const ORTHOGONAL_TOLERANCE: f64 = 1e-4;
-const PLUS_Z: [f64; 3] = [0.0, 0.0, 1.0];
-
-/// `v` normalized in f64, unless it is not finite or zero.
-fn unit64(v: [f32; 3]) -> Option<[f64; 3]> {
-    if !v.iter().all(|x| x.is_finite()) || v.iter().all(|&x| x == 0.0) {
-        return None;
-    }
-    let v = v.map(f64::from);
-    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    Some(v.map(|x| x / len))
-}
-
-/// The unit face normal `(b - a) × (c - a)` in f64, unless it is zero or not finite.
-fn face_normal(p: [[f32; 3]; 3]) -> Option<[f64; 3]> {
-    let [a, b, c] = p.map(|v| v.map(f64::from));
-    let (e1, e2) = (
-        [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-        [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-    );
-    let n = [
-        e1[1] * e2[2] - e1[2] * e2[1],
-        e1[2] * e2[0] - e1[0] * e2[2],
-        e1[0] * e2[1] - e1[1] * e2[0],
-    ];
-    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    (len > 0.0 && len.is_finite()).then(|| n.map(|x| x / len))
-}
-
-/// Finite, unit, `w` = ±1, orthogonal to `normal`: what tests/properties.rs asserts of every
-/// emitted tangent.
-fn check_tangent(t: [f32; 4], normal: [f64; 3], what: &str) {
-    assert!(
-        t.iter().all(|x| x.is_finite()),
-        "{what}: tangent {t:?} is not finite"
-    );
-    let v = [t[0], t[1], t[2]].map(f64::from);
-    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    assert!(
-        (len - 1.0).abs() <= UNIT_TOLERANCE,
-        "{what}: tangent {t:?} has length {len}"
-    );
-    let d = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2];
-    assert!(
-        d.abs() <= ORTHOGONAL_TOLERANCE,
-        "{what}: tangent {t:?} has dot {d} with its normal {normal:?}"
-    );
-    assert!(
-        t[3] == 1.0 || t[3] == -1.0,
-        "{what}: tangent {t:?} has w {}",
-        t[3]
-    );
-}
-
-/// The invariants of tests/properties.rs (`check_output`) that need no oracle: shapes, every
-/// corner's tangent valid against its normal and copying the right vertex, unused vertices valid
-/// against their own normal, generated normals finite and unit.
-fn check_core(input: &MeshInput<'_>, options: &Options, out: &Tangents) {
-    let vertex_count = input.positions.len();
-    let corner_count = input.indices.map_or(vertex_count, <[u32]>::len);
-    let vertex_of = |c: usize| input.indices.map_or(c, |i| i[c] as usize);
-    let split = &out.split;
-    let output_count = split.source_vertex.len();
-    assert_eq!(split.indices.len(), corner_count, "{options:?}");
-    assert_eq!(split.vertex_tangents.len(), output_count, "{options:?}");
-    assert!(
-        split
-            .source_vertex
-            .iter()
-            .all(|&v| (v as usize) < vertex_count),
-        "source vertex out of range"
-    );
-    assert!(
-        split.indices.iter().all(|&v| (v as usize) < output_count),
-        "split index out of range"
-    );
-    match (input.normals, &out.normals) {
-        (Some(_), None) => {
-            assert!(output_count >= vertex_count);
-            assert!(
-                split.source_vertex[..vertex_count]
-                    .iter()
-                    .enumerate()
-                    .all(|(i, &v)| v as usize == i),
-                "the first {vertex_count} source vertices are not the identity"
-            );
-        }
-        (None, Some(normals)) => {
-            assert_eq!(normals.len(), output_count);
-            for (v, n) in normals.iter().enumerate() {
-                let len = n.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>().sqrt();
-                assert!(
-                    n.iter().all(|x| x.is_finite()) && (len - 1.0).abs() <= UNIT_TOLERANCE,
-                    "generated normal {n:?} of output vertex {v} is not finite and unit"
-                );
-            }
-        }
-        (given, returned) => panic!(
-            "normals given: {}, normals returned: {}",
-            given.is_some(),
-            returned.is_some()
-        ),
-    }
-    let mut used = vec![false; output_count];
-    for c in 0..corner_count {
-        let o = split.indices[c] as usize;
-        used[o] = true;
-        let normal = match (&out.normals, input.normals) {
-            (Some(generated), _) => unit64(generated[o]).unwrap_or(PLUS_Z),
-            (None, Some(given)) => unit64(given[vertex_of(c)]).unwrap_or_else(|| {
-                let base = c - c % 3;
-                let tri = [base, base + 1, base + 2].map(|k| input.positions[vertex_of(k)]);
-                face_normal(tri).unwrap_or(PLUS_Z)
-            }),
-            (None, None) => unreachable!("checked above"),
-        };
-        check_tangent(
-            split.vertex_tangents[o],
-            normal,
-            &format!("corner {c} ({options:?})"),
-        );
-        assert_eq!(
-            split.source_vertex[o] as usize,
-            vertex_of(c),
-            "corner {c}: output vertex {o} copies the wrong input vertex"
-        );
-    }
-    for (o, &is_used) in used.iter().enumerate() {
-        if is_used {
-            continue;
-        }
-        let given = input
-            .normals
-            .filter(|_| out.normals.is_none() && o < vertex_count)
-            .unwrap_or_else(|| panic!("output vertex {o} is not used by any corner"));
-        check_tangent(
-            split.vertex_tangents[o],
-            unit64(given[o]).unwrap_or(PLUS_Z),
-            &format!("unused vertex {o} ({options:?})"),
-        );
-    }
-}
-
 /// Arbitrary geometry (see [`core_mesh`] for the layout) through every method, with and
-/// without normals, indexed and not; every result checked with [`check_core`], every error
+/// without normals, indexed and not; every result checked with [`invariants::check_core`], every error
 /// explained by the input.
 pub fn core(data: &[u8]) {
     let Some(mesh) = core_mesh(data) else { return };
@@ -565,7 +420,11 @@ pub fn core(data: &[u8]) {
                     vertex_count
                 };
                 match tangent::generate(&input, &options) {
-                    Ok(out) => check_core(&input, &options, &out),
+                    Ok(out) => {
+                        if let Err(broken) = invariants::check_core(&input, &options, &out) {
+                            panic!("{broken}");
+                        }
+                    }
                     Err(e) => {
                         let explained = match e {
                             CoreError::MissingUvs { .. } => !mesh.has_uvs && method != Method::Axis,

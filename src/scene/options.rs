@@ -1,0 +1,311 @@
+//! What a caller may ask of the scene layer, and what it gets back: [`SceneOptions`] (with its
+//! [`SceneLimits`] and [`OutputFormat`]) in, [`Processed`] out.
+//!
+//! The service's query string and the command line accept the same option values because both
+//! parse them here: every value has one [`FromStr`] ([`Method`]'s is in the tangent core), and
+//! [`SceneOptions::set`] maps the query's `key=value` pairs onto the fields. [`Choice`] lists a
+//! type's accepted names with a line of help, so that the command line can show them in
+//! `--help` without a mirror enum of its own.
+//!
+//! Adding an option: a field here, its parser and its arm in [`SceneOptions::set`] (and its
+//! entry in [`SceneOptions::QUERY_KEYS`]); then the flag in `src/cli/mod.rs`.
+
+use super::report::Report;
+use std::fmt;
+use std::str::FromStr;
+use tspace_tangent::{Method, NormalMode};
+
+/// Caps on what one scene may make tspace allocate or compute.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneLimits {
+    /// Triangles over all distinct computations of one scene.
+    pub max_triangles: usize,
+    /// Elements in one accessor.
+    pub max_vertices: usize,
+    /// Bytes one buffer may declare.
+    pub max_buffer_bytes: usize,
+}
+
+impl Default for SceneLimits {
+    fn default() -> Self {
+        SceneLimits {
+            max_triangles: 1 << 24,
+            max_vertices: 1 << 24,
+            max_buffer_bytes: 1 << 30,
+        }
+    }
+}
+
+/// The container to write.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum OutputFormat {
+    #[default]
+    Glb,
+    /// `.gltf` JSON with the buffer embedded as a `data:` URI.
+    GltfEmbedded,
+}
+
+impl OutputFormat {
+    /// Every format, in the order help texts list them.
+    pub const ALL: [OutputFormat; 2] = [OutputFormat::Glb, OutputFormat::GltfEmbedded];
+
+    /// The name used on the command line, in query strings and in reports; also the file
+    /// extension.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputFormat::Glb => "glb",
+            OutputFormat::GltfEmbedded => "gltf",
+        }
+    }
+}
+
+/// The one parser of format names that the command line and the query string share.
+impl FromStr for OutputFormat {
+    type Err = Expected;
+
+    fn from_str(name: &str) -> Result<OutputFormat, Expected> {
+        OutputFormat::ALL
+            .into_iter()
+            .find(|f| f.name() == name)
+            .ok_or(Expected("glb or gltf"))
+    }
+}
+
+/// A value outside the accepted ones; the message says what is accepted (callers add which
+/// value was given, and where).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Expected(&'static str);
+
+impl fmt::Display for Expected {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "expected {}", self.0)
+    }
+}
+
+impl std::error::Error for Expected {}
+
+/// A query string's boolean: empty (the bare key, `?overwrite`), `true`, `1`, `yes`, or
+/// `false`, `0`, `no`. On the command line the same options are flags, present or not.
+pub fn parse_switch(text: &str) -> Result<bool, Expected> {
+    match text {
+        "" | "true" | "1" | "yes" => Ok(true),
+        "false" | "0" | "no" => Ok(false),
+        _ => Err(Expected("true or false")),
+    }
+}
+
+/// One accepted value of an option, for help texts.
+pub struct Choice {
+    pub name: &'static str,
+    /// Other spellings the parser accepts, not listed in help.
+    pub aliases: &'static [&'static str],
+    pub help: &'static str,
+}
+
+/// An option type whose values are a fixed list of names, each parsed by its [`FromStr`].
+pub trait Choices: FromStr + Copy + Send + Sync + 'static {
+    /// Every value with its help, in the order help texts list them.
+    fn choices() -> Vec<Choice>;
+}
+
+impl Choices for Method {
+    fn choices() -> Vec<Choice> {
+        Method::ALL
+            .into_iter()
+            .map(|m| Choice {
+                name: m.name(),
+                aliases: m.aliases(),
+                help: match m {
+                    Method::MikkTSpace => "MikkTSpace, what normal-map bakers use",
+                    Method::Fast => "Faster and smooth, but not what bakers use",
+                    Method::Axis => "Needs no texture coordinates (for OBJ files without `vt`)",
+                },
+            })
+            .collect()
+    }
+}
+
+impl Choices for OutputFormat {
+    fn choices() -> Vec<Choice> {
+        OutputFormat::ALL
+            .into_iter()
+            .map(|f| Choice {
+                name: f.name(),
+                aliases: &[],
+                help: match f {
+                    OutputFormat::Glb => "Binary glTF, images embedded",
+                    OutputFormat::GltfEmbedded => {
+                        "glTF JSON with its buffer embedded as a data: URI"
+                    }
+                },
+            })
+            .collect()
+    }
+}
+
+/// What to do with a scene.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneOptions {
+    pub method: Method,
+    /// Recompute tangents a primitive already has.
+    pub overwrite: bool,
+    /// Give tangents to every triangle primitive, whatever its material.
+    pub all: bool,
+    pub format: OutputFormat,
+    /// For primitives without normals.
+    pub normal_mode: NormalMode,
+    /// Write the scene; `false` only analyses and reports.
+    pub write: bool,
+    pub limits: SceneLimits,
+}
+
+impl Default for SceneOptions {
+    fn default() -> Self {
+        SceneOptions {
+            method: Method::MikkTSpace,
+            overwrite: false,
+            all: false,
+            format: OutputFormat::Glb,
+            normal_mode: NormalMode::Flat,
+            write: true,
+            limits: SceneLimits::default(),
+        }
+    }
+}
+
+/// An option [`SceneOptions::set`] could not take.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum OptionError {
+    /// No option has this name.
+    Unknown { key: String },
+    /// The option exists but the value is not one it takes.
+    Invalid {
+        key: String,
+        value: String,
+        expected: String,
+    },
+}
+
+impl fmt::Display for OptionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            OptionError::Unknown { key } => {
+                write!(f, "unknown option {key:?}; the options are ")?;
+                let keys = SceneOptions::QUERY_KEYS;
+                for (i, name) in keys.iter().enumerate() {
+                    let separator = match i {
+                        0 => "",
+                        _ if i == keys.len() - 1 => " and ",
+                        _ => ", ",
+                    };
+                    write!(f, "{separator}{name}")?;
+                }
+                Ok(())
+            }
+            OptionError::Invalid {
+                key,
+                value,
+                expected,
+            } => write!(f, "{key}={value:?}: {expected}"),
+        }
+    }
+}
+
+impl std::error::Error for OptionError {}
+
+impl SceneOptions {
+    /// The options [`SceneOptions::set`] takes by name, as the query string names them.
+    pub const QUERY_KEYS: [&'static str; 4] = ["method", "overwrite", "all", "format"];
+
+    /// Sets the option `key` from its text, as a query string gives it (already
+    /// percent-decoded). Limits and `write` are the caller's, not the user's, and are not named.
+    pub fn set(&mut self, key: &str, value: &str) -> Result<(), OptionError> {
+        fn parsed<T, E: fmt::Display>(
+            key: &str,
+            value: &str,
+            parse: impl FnOnce(&str) -> Result<T, E>,
+        ) -> Result<T, OptionError> {
+            parse(value).map_err(|e| OptionError::Invalid {
+                key: key.to_owned(),
+                value: value.to_owned(),
+                expected: e.to_string(),
+            })
+        }
+        match key {
+            "method" => self.method = parsed(key, value, str::parse)?,
+            "overwrite" => self.overwrite = parsed(key, value, parse_switch)?,
+            "all" => self.all = parsed(key, value, parse_switch)?,
+            "format" => self.format = parsed(key, value, str::parse)?,
+            _ => {
+                return Err(OptionError::Unknown {
+                    key: key.to_owned(),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The written scene (unless only analysed) and its report.
+pub struct Processed {
+    pub bytes: Option<Vec<u8>>,
+    pub report: Report,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Help lists only names the parser accepts, so the command line and the query string
+    /// cannot drift apart.
+    fn choices_parse_back<T: Choices + PartialEq + fmt::Debug>(name_of: fn(T) -> &'static str) {
+        for choice in T::choices() {
+            let Ok(value) = choice.name.parse::<T>() else {
+                panic!("{} does not parse", choice.name);
+            };
+            assert_eq!(name_of(value), choice.name);
+            for alias in choice.aliases {
+                assert!(alias.parse::<T>().is_ok_and(|v| v == value), "{alias}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_listed_choice_parses_back() {
+        choices_parse_back::<Method>(Method::name);
+        choices_parse_back::<OutputFormat>(OutputFormat::name);
+    }
+
+    #[test]
+    fn options_are_set_by_name_or_say_why_not() {
+        let mut options = SceneOptions::default();
+        for (key, value) in [
+            ("method", "mikk"),
+            ("overwrite", ""),
+            ("all", "no"),
+            ("format", "gltf"),
+        ] {
+            options.set(key, value).unwrap();
+        }
+        assert_eq!(options.method, Method::MikkTSpace);
+        assert!(options.overwrite && !options.all);
+        assert_eq!(options.format, OutputFormat::GltfEmbedded);
+        let mut message = |key, value| options.set(key, value).unwrap_err().to_string();
+        assert_eq!(
+            message("method", "magic"),
+            "method=\"magic\": expected mikktspace, fast or axis"
+        );
+        assert_eq!(
+            message("overwrite", "maybe"),
+            "overwrite=\"maybe\": expected true or false"
+        );
+        assert_eq!(
+            message("format", "fbx"),
+            "format=\"fbx\": expected glb or gltf"
+        );
+        assert_eq!(
+            message("colour", "red"),
+            "unknown option \"colour\"; the options are method, overwrite, all and format"
+        );
+    }
+}
