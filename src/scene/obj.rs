@@ -39,6 +39,7 @@
 //! Memory is bounded by the input's length and by [`Limits`]: each element, corner and triangle
 //! comes from bytes actually present, and the counts are checked before anything is added.
 
+use glam::DVec3;
 use std::borrow::Cow;
 use std::fmt;
 
@@ -729,49 +730,43 @@ fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
 
 /// The polygon in its best-fit plane, counter-clockwise, or `None` when it has no plane.
 fn project(polygon: &[[f32; 3]]) -> Option<Vec<[f64; 2]>> {
-    let origin = polygon.first()?.map(f64::from);
-    let relative = |p: &[f32; 3]| [0, 1, 2].map(|k| f64::from(p[k]) - origin[k]);
+    let origin = DVec3::from(polygon.first()?.map(f64::from));
+    let relative = |p: &[f32; 3]| DVec3::from(p.map(f64::from)) - origin;
     // Newell's normal: the sum of the edges' contributions to the projected areas.
-    let mut normal = [0.0f64; 3];
+    let mut normal = DVec3::ZERO;
     for (i, p) in polygon.iter().enumerate() {
         let a = relative(p);
         let b = relative(&polygon[(i + 1) % polygon.len()]);
-        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+        normal += DVec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
     }
-    let length = normal.iter().map(|c| c * c).sum::<f64>().sqrt();
+    let length = normal.length();
     if !(length.is_finite() && length > 0.0) {
         return None;
     }
-    let n = normal.map(|c| c / length);
+    let n = normal / length;
     // u: perpendicular to n and to the world axis least aligned with it; v = n × u, so that
     // (u, v, n) is right-handed and the polygon, wound counter-clockwise about n, stays so.
-    let axis = if n[0].abs() <= n[1].abs() && n[0].abs() <= n[2].abs() {
-        [1.0, 0.0, 0.0]
-    } else if n[1].abs() <= n[2].abs() {
-        [0.0, 1.0, 0.0]
+    let a = n.abs();
+    let axis = if a.x <= a.y && a.x <= a.z {
+        DVec3::X
+    } else if a.y <= a.z {
+        DVec3::Y
     } else {
-        [0.0, 0.0, 1.0]
+        DVec3::Z
     };
-    let cross = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
-    };
-    let u = cross(axis, n);
-    let u_length = u.iter().map(|c| c * c).sum::<f64>().sqrt();
-    let u = u.map(|c| c / u_length);
-    let v = cross(n, u);
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let u = axis.cross(n);
+    let u = u / u.length();
+    let v = n.cross(u);
     Some(
         polygon
             .iter()
             .map(|p| {
                 let r = relative(p);
-                [dot(r, u), dot(r, v)]
+                [r.dot(u), r.dot(v)]
             })
             .collect(),
     )
