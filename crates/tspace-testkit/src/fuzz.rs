@@ -5,16 +5,16 @@
 //! Every function takes arbitrary bytes and returns nothing: errors are the expected outcome for
 //! most inputs and are simply dropped. A panic (an `assert!` included) is the bug signal.
 //!
-//! - [`glb`]: the GLB container (split, rewritten byte for byte), then the whole scene path.
-//! - [`gltf`]: the JSON parser, every accessor decoded, then the whole scene path, for GLB and
+//! - [`glb()`]: the GLB container (split, rewritten byte for byte), then the whole scene path.
+//! - [`gltf()`]: the JSON parser, every accessor decoded, then the whole scene path, for GLB and
 //!   `.gltf` input alike, with no external resources.
 //! - [`obj`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte.
 //! - [`parts`]: a multipart upload, as length-prefixed records (see [`parts`]).
-//! - [`core`]: arbitrary geometry straight into [`tspace_tangent::generate`], with the core's
+//! - [`core()`]: arbitrary geometry straight into [`tspace_tangent::generate`], with the core's
 //!   invariants checked on every successful result.
 //!
 //! The scene options (method, overwrite, all, output format, normal mode, write) of [`glb`],
-//! [`gltf`] and [`parts`] come from a cheap hash of the input, so that every mutation may also
+//! [`gltf()`] and [`parts`] come from a cheap hash of the input, so that every mutation may also
 //! change them and the replay stays deterministic.
 
 use crate::invariants;
@@ -249,7 +249,7 @@ pub fn encode_parts(fields: &[(&str, Option<&str>, &[u8])]) -> Vec<u8> {
     out
 }
 
-/// A multipart upload (see [`fields`] for the format), assembled as the server does: the scene
+/// A multipart upload (see `fields` for the format), assembled as the server does: the scene
 /// is the field named file, scene or model, else the first whose file name has a scene
 /// extension, else the first; every other field is a part named by its file name, else its field
 /// name; two parts with one name are an error. The kind comes from the main file's name, else
@@ -394,7 +394,7 @@ fn core_mesh(data: &[u8]) -> Option<CoreMesh> {
     })
 }
 
-/// Arbitrary geometry (see [`core_mesh`] for the layout) through every method, with and
+/// Arbitrary geometry (see `core_mesh` for the layout) through every method, with and
 /// without normals, indexed and not; every result checked with [`invariants::check_core`], every error
 /// explained by the input.
 pub fn core(data: &[u8]) {

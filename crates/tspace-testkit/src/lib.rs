@@ -6,7 +6,7 @@
 //! that is why it is a crate of its own that only `[dev-dependencies]` name, and why nothing in
 //! it is reachable from the `tspace` binary.
 //!
-//! - [`reference`]: the oracle, `bevy_mikktspace` 1.0.
+//! - [`reference`](mod@reference): the oracle, `bevy_mikktspace` 1.0.
 //! - [`invariants`]: what every emitted tangent and split plan must satisfy, checked by the
 //!   property tests and the `core` fuzz target alike.
 //! - [`shapes`], [`random_mesh`]: generated meshes: a sphere and a torus with exact tangents,

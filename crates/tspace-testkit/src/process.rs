@@ -59,7 +59,7 @@ impl ServerProcess {
         self.logs.lock().unwrap().clone()
     }
 
-    /// A field of /proc/<pid>/status in bytes (`VmHWM` for the peak, `VmRSS` for now).
+    /// A field of `/proc/<pid>/status` in bytes (`VmHWM` for the peak, `VmRSS` for now).
     pub fn memory(&self, field: &str) -> usize {
         let status = std::fs::read_to_string(format!("/proc/{}/status", self.pid()))
             .expect("/proc status of the server");
