@@ -115,49 +115,96 @@ fn obj_error(error: obj::ObjError) -> SceneError {
     }
 }
 
+/// An OBJ: parse it, read its MTL files and the textures they name, convert it to a GLB, and
+/// process that like any glTF; the report then describes the OBJ.
 fn process_obj<'a>(
     main: &'a [u8],
     resources: &dyn Resources<'a>,
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
-    let limits = options.limits;
-    let parsed = obj::parse_obj(
-        main,
-        &obj::Limits {
-            max_vertices: limits.max_vertices,
-            max_triangles: limits.max_triangles,
-            ..obj::Limits::default()
+    let parsed = parse_obj(main, options)?;
+    refuse_obj_without_uvs(&parsed, options.method)?;
+    let mut supplied = Supplied::default();
+    let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
+    supplied.warnings.extend(parse_warnings(&parsed.warnings));
+    fetch_textures(mtl.as_ref(), resources, &mut supplied);
+    let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied)?;
+    let mut processed = gltf::process_with(
+        &glb_bytes,
+        &NoResources,
+        options,
+        &gltf::Internal {
+            no_material_means_tangents: true,
         },
-    )
-    .map_err(obj_error)?;
-    if parsed.uvs.is_empty() && options.method != Method::Axis && parsed.triangle_count() > 0 {
+    )?;
+    let report = &mut processed.report;
+    report.input_format = "obj";
+    report.input_bytes = main.len() as u64 + supplied.bytes;
+    // The OBJ's own warnings come first, then the glTF path's.
+    supplied.warnings.append(&mut report.warnings);
+    report.warnings = supplied.warnings;
+    Ok(processed)
+}
+
+/// What came with the OBJ: the textures to embed, the bytes read beside it (MTL files and
+/// textures, for the report's input size), and warnings about what was missing or skipped.
+#[derive(Default)]
+struct Supplied<'a> {
+    images: Vec<(String, std::borrow::Cow<'a, [u8]>)>,
+    bytes: u64,
+    warnings: Vec<String>,
+}
+
+fn parse_obj(main: &[u8], options: &SceneOptions) -> Result<obj::Obj, SceneError> {
+    let limits = obj::Limits {
+        max_vertices: options.limits.max_vertices,
+        max_triangles: options.limits.max_triangles,
+        ..obj::Limits::default()
+    };
+    obj::parse_obj(main, &limits).map_err(obj_error)
+}
+
+/// Tangents follow the texture coordinates; only the axis method does without them.
+fn refuse_obj_without_uvs(parsed: &obj::Obj, method: Method) -> Result<(), SceneError> {
+    if parsed.uvs.is_empty() && method != Method::Axis && parsed.triangle_count() > 0 {
         return Err(SceneError::new(
             ProblemCode::ObjWithoutUvs,
             "the OBJ has no texture coordinates (vt), and tangents follow them; ask for the axis method (method=axis) to get tangents that need none",
         ));
     }
+    Ok(())
+}
 
-    let mut warnings = Vec::new();
-    let mut extra_bytes = 0u64;
+/// Every `mtllib` the OBJ names, merged into one library. A missing file is a warning (its
+/// faces get default materials); a malformed one is an error.
+fn read_material_libraries<'a>(
+    parsed: &obj::Obj,
+    resources: &dyn Resources<'a>,
+    supplied: &mut Supplied<'a>,
+) -> Result<Option<obj::Mtl>, SceneError> {
     let mut mtl: Option<obj::Mtl> = None;
     for name in &parsed.material_libraries {
-        match resources.fetch(name) {
-            Ok(bytes) => {
-                extra_bytes += bytes.len() as u64;
-                let library = obj::parse_mtl(&bytes).map_err(|e| {
-                    SceneError::new(ProblemCode::MalformedMtl, format!("MTL {name:?}: {e}"))
-                })?;
-                match &mut mtl {
-                    None => mtl = Some(library),
-                    Some(all) => all.materials.extend(library.materials),
-                }
-            }
-            Err(_) => warnings.push(format!(
+        let Ok(bytes) = resources.fetch(name) else {
+            supplied.warnings.push(format!(
                 "the OBJ names the material library {name:?}, which was not supplied; its faces get default materials"
-            )),
+            ));
+            continue;
+        };
+        supplied.bytes += bytes.len() as u64;
+        let library = obj::parse_mtl(&bytes).map_err(|e| {
+            SceneError::new(ProblemCode::MalformedMtl, format!("MTL {name:?}: {e}"))
+        })?;
+        match &mut mtl {
+            None => mtl = Some(library),
+            Some(all) => all.materials.extend(library.materials),
         }
     }
-    let w = &parsed.warnings;
+    Ok(mtl)
+}
+
+/// What the OBJ parser skipped or repaired, one sentence each.
+fn parse_warnings(w: &obj::Warnings) -> Vec<String> {
+    let mut warnings = Vec::new();
     if w.unsupported_statements > 0 {
         warnings.push(format!(
             "{} OBJ statements were skipped ({})",
@@ -189,10 +236,17 @@ fn process_obj<'a>(
             warnings.push(format!("{count} {what}"));
         }
     }
+    warnings
+}
 
-    // The textures the conversion embeds, fetched under the path the MTL wrote. MTL files from
-    // Windows tools write `.\name.jpg`; the slash form and the bare file name are tried too.
-    let mut images: Vec<(String, std::borrow::Cow<'a, [u8]>)> = Vec::new();
+/// The textures the conversion embeds, fetched under the path the MTL wrote. MTL files from
+/// Windows tools write `.\name.jpg`; the slash form and the bare file name are tried too. One
+/// that is not found stays a reference (the conversion says so).
+fn fetch_textures<'a>(
+    mtl: Option<&obj::Mtl>,
+    resources: &dyn Resources<'a>,
+    supplied: &mut Supplied<'a>,
+) {
     for material in mtl.iter().flat_map(|m| &m.materials) {
         for texture in [
             &material.diffuse_map,
@@ -202,7 +256,7 @@ fn process_obj<'a>(
         .into_iter()
         .flatten()
         {
-            if images.iter().any(|(n, _)| *n == texture.path) {
+            if supplied.images.iter().any(|(n, _)| *n == texture.path) {
                 continue;
             }
             let slashed = texture.path.replace('\\', "/");
@@ -212,43 +266,32 @@ fn process_obj<'a>(
                 .filter(|c| !c.is_empty())
                 .find_map(|c| resources.fetch(c).ok());
             if let Some(bytes) = found {
-                extra_bytes += bytes.len() as u64;
-                images.push((texture.path.clone(), bytes));
+                supplied.bytes += bytes.len() as u64;
+                supplied.images.push((texture.path.clone(), bytes));
             }
         }
     }
+}
+
+/// The OBJ as a GLB with its textures embedded; the conversion's warnings join the rest.
+fn convert_to_glb(
+    parsed: &obj::Obj,
+    mtl: Option<&obj::Mtl>,
+    supplied: &mut Supplied<'_>,
+) -> Result<Vec<u8>, SceneError> {
     let mut image_parts = PartSet::new();
-    for (name, bytes) in &images {
+    for (name, bytes) in &supplied.images {
         // Names are distinct by construction.
         let _ = image_parts.insert(name.clone(), bytes);
     }
-    let converted = obj_gltf::obj_to_gltf(
-        &parsed,
-        mtl.as_ref(),
-        &image_parts,
-        &ConvertLimits::default(),
-    )
-    .map_err(|e| match e {
-        ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
-        _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
-    })?;
-    warnings.extend(converted.warnings);
-    let glb_bytes = glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
-        .map_err(|e| SceneError::new(ProblemCode::TooLarge, format!("the converted OBJ {e}")))?;
-    let mut processed = gltf::process_with(
-        &glb_bytes,
-        &NoResources,
-        options,
-        &gltf::Internal {
-            no_material_means_tangents: true,
-        },
-    )?;
-    let report = &mut processed.report;
-    report.input_format = "obj";
-    report.input_bytes = main.len() as u64 + extra_bytes;
-    warnings.append(&mut report.warnings);
-    report.warnings = warnings;
-    Ok(processed)
+    let converted = obj_gltf::obj_to_gltf(parsed, mtl, &image_parts, &ConvertLimits::default())
+        .map_err(|e| match e {
+            ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
+            _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
+        })?;
+    supplied.warnings.extend(converted.warnings);
+    glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
+        .map_err(|e| SceneError::new(ProblemCode::TooLarge, format!("the converted OBJ {e}")))
 }
 
 #[cfg(test)]
