@@ -4,6 +4,7 @@
 
 pub mod accessor;
 pub mod compute;
+mod created;
 pub mod glb;
 
 pub mod load;

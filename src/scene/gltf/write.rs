@@ -11,6 +11,7 @@
 //! every byte and index stays where it was and the report says why.
 
 use super::accessor::{self, ComponentType, ElementType};
+use super::created::{self, AccessorJson, Bounds, float_bound, integer_bound};
 use super::glb;
 use super::load::{Buffer, BufferSource, Container, Loaded, Resources};
 use super::refs::{self, Owner};
@@ -43,7 +44,7 @@ struct NewAccessor {
     element_type: ElementType,
     normalized: bool,
     count: usize,
-    min_max: Option<(String, String)>,
+    min_max: Option<Bounds>,
 }
 
 /// The changes to one primitive: members to set (attribute name → accessor), and so on.
@@ -66,10 +67,6 @@ pub struct Changes {
     views: Vec<NewView>,
     accessors: Vec<NewAccessor>,
     pub primitives: BTreeMap<(usize, usize), PrimitiveEdit>,
-}
-
-fn float_text(v: f32) -> String {
-    json::f32_text(v).unwrap_or_else(|| "0".into())
 }
 
 impl Changes {
@@ -111,19 +108,7 @@ impl Changes {
                     }
                 }
             }
-            let list = |a: [f32; N]| {
-                let items: Vec<String> = a
-                    .iter()
-                    .map(|&x| {
-                        if x.is_finite() {
-                            float_text(x)
-                        } else {
-                            "0".into()
-                        }
-                    })
-                    .collect();
-                format!("[{}]", items.join(","))
-            };
+            let list = |a: [f32; N]| a.iter().map(|&x| float_bound(x)).collect();
             (list(lo), list(hi))
         });
         let view = self.push_view(data, Some(ARRAY_BUFFER), None);
@@ -234,7 +219,7 @@ fn min_max_of(
     stride: usize,
     component_type: ComponentType,
     element_type: ElementType,
-) -> Option<(String, String)> {
+) -> Option<Bounds> {
     let n = match element_type {
         ElementType::Scalar => 1,
         ElementType::Vec2 => 2,
@@ -269,25 +254,23 @@ fn min_max_of(
             }
         }
     }
-    let text = |list: &[f64]| {
-        let items: Vec<String> = list
-            .iter()
+    let bounds = |list: &[f64]| {
+        list.iter()
             .map(|&v| {
                 if !v.is_finite() {
-                    "0".into()
+                    integer_bound(0)
                 } else if component_type == ComponentType::F32 {
-                    float_text(v as f32)
+                    float_bound(v as f32)
                 } else {
-                    format!("{}", v as i64)
+                    integer_bound(v as i64)
                 }
             })
-            .collect();
-        format!("[{}]", items.join(","))
+            .collect()
     };
-    Some((text(&lo), text(&hi)))
+    Some((bounds(&lo), bounds(&hi)))
 }
 
-/// What [`write`] produced.
+/// What [`write()`] produced.
 pub struct Written {
     pub bytes: Vec<u8>,
     /// Bytes of external images the output now embeds.
@@ -877,23 +860,14 @@ fn append_accessors(
     changes: &Changes,
 ) -> Result<(), SceneError> {
     for accessor in &changes.accessors {
-        let mut text = format!(
-            "{{\"bufferView\":{},\"componentType\":{},",
-            numbering.kept_views + accessor.view,
-            accessor.component_type.code()
-        );
-        if accessor.normalized {
-            text.push_str("\"normalized\":true,");
-        }
-        text.push_str(&format!(
-            "\"count\":{},\"type\":\"{}\"",
-            accessor.count,
-            accessor.element_type.name()
-        ));
-        if let Some((min, max)) = &accessor.min_max {
-            text.push_str(&format!(",\"min\":{min},\"max\":{max}"));
-        }
-        text.push('}');
+        let text = created::accessor(&AccessorJson {
+            view: numbering.kept_views + accessor.view,
+            component_type: accessor.component_type,
+            element_type: accessor.element_type,
+            normalized: accessor.normalized,
+            count: accessor.count,
+            bounds: accessor.min_max.clone(),
+        })?;
         editor
             .push_to_array_member(root, "accessors", text)
             .map_err(edit_error)?;
@@ -964,15 +938,8 @@ fn append_buffer_views(
         .iter()
         .map(|v| (v.data.len(), v.target, v.byte_stride))
         .chain(images.data.iter().map(|d| (d.len(), None, None)));
-    for ((length, target, stride), offset) in new_views.zip(&layout.new_view_offsets) {
-        let mut text = format!("{{\"buffer\":0,\"byteOffset\":{offset},\"byteLength\":{length}");
-        if let Some(stride) = stride {
-            text.push_str(&format!(",\"byteStride\":{stride}"));
-        }
-        if let Some(target) = target {
-            text.push_str(&format!(",\"target\":{target}"));
-        }
-        text.push('}');
+    for ((length, target, stride), &offset) in new_views.zip(&layout.new_view_offsets) {
+        let text = created::buffer_view(offset, length, stride, target)?;
         editor
             .push_to_array_member(root, "bufferViews", text)
             .map_err(edit_error)?;
@@ -1202,13 +1169,7 @@ fn merged_buffer(
             point_buffer_at_bin(&mut sub_editor, sub.root(), byte_length, bin_uri)?;
             sub_editor.render().map_err(edit_error)
         }
-        None => Ok(match bin_uri {
-            None => format!("{{\"byteLength\":{byte_length}}}"),
-            Some(uri) => format!(
-                "{{\"byteLength\":{byte_length},\"uri\":{}}}",
-                json::escape_str(uri)
-            ),
-        }),
+        None => created::buffer(byte_length, bin_uri),
     }
 }
 
@@ -1422,7 +1383,10 @@ mod tests {
             .flat_map(|e| e.iter().flat_map(|c| c.to_le_bytes()).chain([0, 0]))
             .collect();
         let (min, max) = min_max_of(&data, 8, ComponentType::I16, ElementType::Vec3).unwrap();
-        assert_eq!((min.as_str(), max.as_str()), ("[1,-5,-9]", "[7,2,3]"));
+        assert_eq!(
+            (serde_json::json!(min), serde_json::json!(max)),
+            (serde_json::json!([1, -5, -9]), serde_json::json!([7, 2, 3]))
+        );
     }
 
     #[test]

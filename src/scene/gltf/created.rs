@@ -1,0 +1,214 @@
+//! The JSON members tspace adds to a document it edits (new accessors, buffer views, and the
+//! one output buffer when the input had none), built as typed `gltf-json` values and serialized,
+//! so that what tspace creates is well-formed and correctly named by construction.
+//!
+//! Only what tspace creates goes through here. The user's JSON is never parsed into these types:
+//! it is edited in place by `tspace-json`'s splice editor, which is why everything tspace does not
+//! change comes back byte for byte.
+//!
+//! Numbers: a float's `min` or `max` is written with the shortest text that reads back as the
+//! same `f32` (`0.1`, not the `0.10000000149011612` that its widening to `f64` would print).
+
+use super::accessor::{ComponentType, ElementType};
+use crate::scene::error::{ProblemCode, SceneError};
+use gltf_json::accessor::{self as json_accessor, GenericComponentType};
+use gltf_json::buffer::{self as json_buffer, Stride};
+use gltf_json::validation::{Checked, USize64};
+use gltf_json::{Index, Value};
+
+/// `min` and `max` of an accessor, one value per component.
+pub type Bounds = (Vec<Value>, Vec<Value>);
+
+/// A float bound: the shortest text that reads back as `value` (0 for a non-finite one, which
+/// glTF does not allow there).
+pub fn float_bound(value: f32) -> Value {
+    tspace_json::f32_text(value)
+        .filter(|_| value.is_finite())
+        .and_then(|text| serde_json::from_str(&text).ok())
+        .unwrap_or_else(|| Value::from(0))
+}
+
+/// An integer component's bound.
+pub fn integer_bound(value: i64) -> Value {
+    Value::from(value)
+}
+
+/// Serialized, or an internal error: a typed value that does not serialize is a bug here.
+fn serialized(value: &impl serde::Serialize, what: &str) -> Result<String, SceneError> {
+    serde_json::to_string(value).map_err(|e| {
+        SceneError::new(
+            ProblemCode::InternalEdit,
+            format!("tspace could not write a new {what}: {e}"),
+        )
+    })
+}
+
+fn index<T>(position: usize, what: &str) -> Result<Index<T>, SceneError> {
+    u32::try_from(position).map(Index::new).map_err(|_| {
+        SceneError::new(
+            ProblemCode::TooLarge,
+            format!("{what} {position} is past what a glTF index can hold"),
+        )
+    })
+}
+
+fn component_type(component_type: ComponentType) -> json_accessor::ComponentType {
+    match component_type {
+        ComponentType::I8 => json_accessor::ComponentType::I8,
+        ComponentType::U8 => json_accessor::ComponentType::U8,
+        ComponentType::I16 => json_accessor::ComponentType::I16,
+        ComponentType::U16 => json_accessor::ComponentType::U16,
+        ComponentType::U32 => json_accessor::ComponentType::U32,
+        ComponentType::F32 => json_accessor::ComponentType::F32,
+    }
+}
+
+fn element_type(element_type: ElementType) -> json_accessor::Type {
+    match element_type {
+        ElementType::Scalar => json_accessor::Type::Scalar,
+        ElementType::Vec2 => json_accessor::Type::Vec2,
+        ElementType::Vec3 => json_accessor::Type::Vec3,
+        ElementType::Vec4 => json_accessor::Type::Vec4,
+        ElementType::Mat2 => json_accessor::Type::Mat2,
+        ElementType::Mat3 => json_accessor::Type::Mat3,
+        ElementType::Mat4 => json_accessor::Type::Mat4,
+    }
+}
+
+/// What one new accessor says.
+pub struct AccessorJson {
+    pub view: usize,
+    pub component_type: ComponentType,
+    pub element_type: ElementType,
+    pub normalized: bool,
+    pub count: usize,
+    pub bounds: Option<Bounds>,
+}
+
+/// A new accessor of `count` tightly described elements in buffer view `view`.
+pub fn accessor(new: &AccessorJson) -> Result<String, SceneError> {
+    let (min, max) = match &new.bounds {
+        Some((min, max)) => (
+            Some(Value::from(min.clone())),
+            Some(Value::from(max.clone())),
+        ),
+        None => (None, None),
+    };
+    let typed = gltf_json::Accessor {
+        buffer_view: Some(index(new.view, "buffer view")?),
+        byte_offset: None,
+        count: USize64::from(new.count),
+        component_type: Checked::Valid(GenericComponentType(component_type(new.component_type))),
+        extensions: None,
+        extras: Default::default(),
+        type_: Checked::Valid(element_type(new.element_type)),
+        min,
+        max,
+        name: None,
+        normalized: new.normalized,
+        sparse: None,
+    };
+    serialized(&typed, "accessor")
+}
+
+/// A new buffer view of `length` bytes at `offset` in buffer 0.
+pub fn buffer_view(
+    offset: usize,
+    length: usize,
+    stride: Option<usize>,
+    target: Option<u32>,
+) -> Result<String, SceneError> {
+    let target = match target {
+        None => None,
+        Some(34962) => Some(Checked::Valid(json_buffer::Target::ArrayBuffer)),
+        Some(34963) => Some(Checked::Valid(json_buffer::Target::ElementArrayBuffer)),
+        Some(other) => {
+            return Err(SceneError::new(
+                ProblemCode::InternalEdit,
+                format!("tspace asked for a buffer view target {other}, which glTF does not have"),
+            ));
+        }
+    };
+    let typed = json_buffer::View {
+        buffer: Index::new(0),
+        byte_length: USize64::from(length),
+        byte_offset: Some(USize64::from(offset)),
+        byte_stride: stride.map(Stride),
+        name: None,
+        target,
+        extensions: None,
+        extras: Default::default(),
+    };
+    serialized(&typed, "buffer view")
+}
+
+/// The output's one buffer, when no input buffer had data to keep its other members.
+pub fn buffer(byte_length: usize, uri: Option<&str>) -> Result<String, SceneError> {
+    let typed = gltf_json::Buffer {
+        byte_length: USize64::from(byte_length),
+        name: None,
+        uri: uri.map(str::to_owned),
+        extensions: None,
+        extras: Default::default(),
+    };
+    serialized(&typed, "buffer")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn float_bounds_are_the_shortest_f32_text() {
+        assert_eq!(float_bound(0.1).to_string(), "0.1");
+        assert_eq!(float_bound(-2.5).to_string(), "-2.5");
+        assert_eq!(float_bound(f32::NAN).to_string(), "0");
+        assert_eq!(float_bound(1e-7).to_string(), "1e-7");
+    }
+
+    #[test]
+    fn an_accessor_says_what_it_describes() {
+        let text = accessor(&AccessorJson {
+            view: 7,
+            component_type: ComponentType::F32,
+            element_type: ElementType::Vec3,
+            normalized: false,
+            count: 24,
+            bounds: Some((
+                vec![float_bound(-1.0), float_bound(-0.5), float_bound(0.0)],
+                vec![float_bound(1.0), float_bound(0.5), float_bound(0.25)],
+            )),
+        })
+        .unwrap();
+        let value: Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            value,
+            serde_json::json!({
+                "bufferView": 7, "componentType": 5126, "count": 24, "type": "VEC3",
+                // Whole floats are spelled as integers, as tspace-json's f32_text does.
+                "min": [-1, -0.5, 0], "max": [1, 0.5, 0.25]
+            })
+        );
+    }
+
+    #[test]
+    fn a_buffer_view_keeps_stride_and_target() {
+        let text = buffer_view(64, 120, Some(8), Some(34962)).unwrap();
+        let value: Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            value,
+            serde_json::json!({
+                "buffer": 0, "byteOffset": 64, "byteLength": 120, "byteStride": 8, "target": 34962
+            })
+        );
+        assert!(buffer_view(0, 4, None, Some(1)).is_err());
+    }
+
+    #[test]
+    fn a_buffer_names_its_uri_only_when_it_has_one() {
+        assert_eq!(buffer(16, None).unwrap(), r#"{"byteLength":16}"#);
+        let with_uri: Value =
+            serde_json::from_str(&buffer(16, Some("a \"b\".bin")).unwrap()).unwrap();
+        assert_eq!(with_uri["uri"], "a \"b\".bin");
+    }
+}
