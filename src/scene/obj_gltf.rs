@@ -85,26 +85,46 @@
 //!
 //! Compact JSON with `asset`, `scene` 0, one scene of every node, and only non-empty arrays.
 //! Buffer 0 has no `uri` and a `byteLength` equal to the (4-byte padded) binary buffer's
-//! length: the caller decides between a GLB BIN chunk and a `data:` URI.
+//! length: the caller decides between a GLB BIN chunk and a `data:` URI. Material members
+//! equal to glTF's defaults are left out (except `metallicFactor`, and `roughnessFactor` of a
+//! material from the MTL); every primitive states its `mode`; a primitive's attributes are
+//! listed in the order above, which the tangent step keeps.
+//!
+//! # Phases
+//!
+//! [`obj_to_gltf`] plans the meshes, then the materials, then the images; lays out the buffer
+//! and checks its size; writes it (attributes, indices, then images); builds the document as
+//! `gltf-json`'s typed values; and writes that as JSON text. `gltf-json` is used here only
+//! because tspace creates this document whole: it never reads input, and a user's glTF is
+//! edited by `tspace-json`, byte for byte.
 //!
 //! Warnings here cover the conversion only; the OBJ and MTL readers' own are in
 //! [`Obj::warnings`] and [`Mtl::warnings`]. Memory is proportional to the parsed OBJ (at most
 //! three vertices per triangle) plus the embedded images, and the buffer's size is checked
 //! against [`ConvertLimits`] before it is allocated.
 
-use std::collections::HashMap;
-use std::fmt;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::{fmt, io};
+
+use gltf_json as json;
+use json::accessor::{ComponentType, GenericComponentType, Type};
+use json::buffer::Target;
+use json::extensions::material::{EmissiveStrength, EmissiveStrengthFactor};
+use json::material::{
+    AlphaMode, EmissiveFactor, NormalTexture, PbrBaseColorFactor, PbrMetallicRoughness,
+    StrengthFactor,
+};
+use json::mesh::{Mode, Semantic};
+use json::texture::WrappingMode;
+use json::validation::{Checked, Checked::Valid, USize64};
+use json::{Index, Root};
+use serde_json::{Map, Value};
 
 use super::obj::{Corner, Material, Mtl, Obj, Texture};
 use super::uri::PartSet;
-use tspace_json::{escape_str, f32_text};
+use tspace_json::f32_text;
 
-const ARRAY_BUFFER: u32 = 34962;
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-const FLOAT: u32 = 5126;
-const UNSIGNED_SHORT: u32 = 5123;
-const UNSIGNED_INT: u32 = 5125;
-const REPEAT: u32 = 10497;
+/// glTF's `mode` for triangle lists, which every primitive here is.
 const TRIANGLES: u32 = 4;
 
 const TEXTURE_TRANSFORM: &str = "KHR_texture_transform";
@@ -184,6 +204,9 @@ pub enum ConvertError {
         value: u64,
         limit: u64,
     },
+    /// The document could not be written as JSON. Not expected (every value written is finite
+    /// and every key a string), so an error rather than a panic if it ever happens.
+    Json(String),
 }
 
 impl fmt::Display for ConvertError {
@@ -209,6 +232,12 @@ impl fmt::Display for ConvertError {
             ConvertError::TooLarge { what, value, limit } => {
                 write!(f, "{what} would be {value}, more than the limit of {limit}")
             }
+            ConvertError::Json(e) => {
+                write!(
+                    f,
+                    "the converted document could not be written as JSON: {e}"
+                )
+            }
         }
     }
 }
@@ -226,6 +255,8 @@ fn too_large(what: &'static str, value: impl TryInto<u64>, limit: u64) -> Conver
 fn to_u32(what: &'static str, value: usize) -> Result<u32, ConvertError> {
     u32::try_from(value).map_err(|_| too_large(what, value, u64::from(u32::MAX)))
 }
+
+// Planning the meshes.
 
 /// Which primitive a triangle joins within its object.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -335,18 +366,71 @@ fn usable_normal(n: [f32; 3]) -> bool {
     length_squared.is_finite() && length_squared > 0.0
 }
 
+/// Checks that every corner of `triangle` refers to values the OBJ has.
+fn check_corners(obj: &Obj, triangle: &[Corner; 3]) -> Result<(), ConvertError> {
+    for c in triangle {
+        check_index("position", Some(c.position), obj.positions.len())?;
+        check_index("texture coordinate", c.uv, obj.uvs.len())?;
+        check_index("normal", c.normal, obj.normals.len())?;
+        if let Some(colors) = &obj.colors {
+            check_index("vertex colour", Some(c.position), colors.len())?;
+        }
+    }
+    Ok(())
+}
+
+/// `triangle` with texture coordinates and normals kept only where all three corners have
+/// them, usable (finite, and for normals of non-zero length), counting what is dropped; and
+/// the signature (without material) that results.
+fn usable_attributes(
+    obj: &Obj,
+    triangle: &[Corner; 3],
+    dropped: &mut Dropped,
+) -> ([Corner; 3], bool, bool) {
+    let uvs = triangle.iter().filter(|c| c.uv.is_some()).count();
+    let normals = triangle.iter().filter(|c| c.normal.is_some()).count();
+    if uvs % 3 != 0 || normals % 3 != 0 {
+        dropped.partial += 1;
+    }
+    let finite_uv = |c: &Corner| {
+        c.uv.and_then(|i| obj.uvs.get(i as usize))
+            .is_some_and(|uv| uv.iter().all(|v| v.is_finite()))
+    };
+    let usable = |c: &Corner| {
+        c.normal
+            .and_then(|i| obj.normals.get(i as usize))
+            .is_some_and(|&n| usable_normal(n))
+    };
+    let mut has_uv = uvs == 3;
+    if has_uv && !triangle.iter().all(finite_uv) {
+        has_uv = false;
+        dropped.uvs += 1;
+    }
+    let mut has_normal = normals == 3;
+    if has_normal && !triangle.iter().all(usable) {
+        has_normal = false;
+        dropped.normals += 1;
+    }
+    let kept = triangle.map(|mut c| {
+        c.uv = c.uv.filter(|_| has_uv);
+        c.normal = c.normal.filter(|_| has_normal);
+        c
+    });
+    (kept, has_uv, has_normal)
+}
+
 /// Splits the OBJ's face groups into meshes and primitives, dropping from each triangle an
 /// attribute that is missing or unusable on any of its corners (see the module documentation).
 fn plan_meshes(obj: &Obj) -> Result<(Vec<Mesh<'_>>, Dropped), ConvertError> {
     let mut meshes = Vec::new();
     let mut current: Option<MeshBuilder<'_>> = None;
     let mut dropped = Dropped::default();
-    let colors = obj.colors.as_ref().map(Vec::len);
     for group in &obj.groups {
         if group.triangles.is_empty() {
             continue;
         }
         let object = group.object.as_deref();
+        // A new `o` name starts a new mesh, even one an earlier mesh had.
         if current.as_ref().is_none_or(|m| m.name != object) {
             if let Some(done) = current.take() {
                 meshes.push(done.finish());
@@ -356,55 +440,18 @@ fn plan_meshes(obj: &Obj) -> Result<(Vec<Mesh<'_>>, Dropped), ConvertError> {
         let Some(builder) = current.as_mut() else {
             continue; // Unreachable: set just above.
         };
-        let material = group.material.as_deref();
         for triangle in &group.triangles {
-            for c in triangle {
-                check_index("position", Some(c.position), obj.positions.len())?;
-                check_index("texture coordinate", c.uv, obj.uvs.len())?;
-                check_index("normal", c.normal, obj.normals.len())?;
-                if let Some(count) = colors {
-                    check_index("vertex colour", Some(c.position), count)?;
-                }
-            }
-            let uvs = triangle.iter().filter(|c| c.uv.is_some()).count();
-            let normals = triangle.iter().filter(|c| c.normal.is_some()).count();
-            if uvs % 3 != 0 || normals % 3 != 0 {
-                dropped.partial += 1;
-            }
-            let mut has_uv = uvs == 3;
-            let mut has_normal = normals == 3;
-            if has_uv {
-                let finite = |c: &Corner| {
-                    c.uv.and_then(|i| obj.uvs.get(i as usize))
-                        .is_some_and(|uv| uv.iter().all(|v| v.is_finite()))
-                };
-                if !triangle.iter().all(finite) {
-                    has_uv = false;
-                    dropped.uvs += 1;
-                }
-            }
-            if has_normal {
-                let usable = |c: &Corner| {
-                    c.normal
-                        .and_then(|i| obj.normals.get(i as usize))
-                        .is_some_and(|&n| usable_normal(n))
-                };
-                if !triangle.iter().all(usable) {
-                    has_normal = false;
-                    dropped.normals += 1;
-                }
-            }
-            let mut triangle = *triangle;
-            for c in &mut triangle {
-                c.uv = c.uv.filter(|_| has_uv);
-                c.normal = c.normal.filter(|_| has_normal);
-            }
-            let signature = Signature {
-                material,
-                uv: has_uv,
-                normal: has_normal,
-            };
-            builder.add(signature, triangle)?;
+            check_corners(obj, triangle)?;
+            let (triangle, uv, normal) = usable_attributes(obj, triangle, &mut dropped);
+            let material = group.material.as_deref();
+            builder.add(
+                Signature {
+                    material,
+                    uv,
+                    normal,
+                },
+                triangle,
+            )?;
         }
     }
     if let Some(done) = current {
@@ -415,6 +462,8 @@ fn plan_meshes(obj: &Obj) -> Result<(Vec<Mesh<'_>>, Dropped), ConvertError> {
     }
     Ok((meshes, dropped))
 }
+
+// Planning the materials and images.
 
 /// A material as written to the document.
 struct MaterialPlan<'m> {
@@ -555,7 +604,7 @@ struct ImageTable<'p> {
     by_path: HashMap<String, usize>,
     /// Texture paths that had no file name at all (and the same as a set).
     unusable: Vec<String>,
-    unusable_seen: std::collections::HashSet<String>,
+    unusable_seen: HashSet<String>,
     /// Texture paths reduced to their file name.
     reduced: Vec<String>,
     /// Images not supplied.
@@ -604,6 +653,37 @@ impl<'p> ImageTable<'p> {
         });
         self.by_path.insert(clean.path, index);
         Some(index)
+    }
+
+    /// Warns about the paths that could not be used as they were written, and the images
+    /// that could not be embedded.
+    fn warn(&self, warnings: &mut Vec<String>) {
+        if !self.reduced.is_empty() {
+            warnings.push(format!(
+                "texture paths that are absolute or climb out of their folder, kept as their file \
+             name only: {}",
+                name_list(&self.reduced)
+            ));
+        }
+        if !self.unusable.is_empty() {
+            warnings.push(format!(
+                "texture paths without a file name, ignored: {}",
+                name_list(&self.unusable)
+            ));
+        }
+        if !self.missing.is_empty() {
+            warnings.push(format!(
+                "texture files not supplied, referenced by relative URI instead of embedded: {}",
+                name_list(&self.missing)
+            ));
+        }
+        if !self.unknown_format.is_empty() {
+            warnings.push(format!(
+                "texture files that are not PNG, JPEG or WebP, which glTF cannot embed; \
+             referenced by relative URI: {}",
+                name_list(&self.unknown_format)
+            ));
+        }
     }
 }
 
@@ -721,97 +801,6 @@ fn pbr(m: &Material) -> Pbr {
         blend: alpha < 1.0,
         adjusted,
     }
-}
-
-/// Where an attribute or index list, or an image, sits in the buffer.
-struct View {
-    offset: usize,
-    length: usize,
-    target: Option<u32>,
-}
-
-struct Accessor {
-    view: usize,
-    component_type: u32,
-    count: usize,
-    kind: &'static str,
-    bounds: Option<([f32; 3], [f32; 3])>,
-}
-
-/// The buffer under construction, with its views.
-struct Bin {
-    bytes: Vec<u8>,
-    views: Vec<View>,
-}
-
-impl Bin {
-    /// Appends `data`, padded with zeros to a multiple of 4, as a new view.
-    fn view(&mut self, data: &[u8], target: Option<u32>) -> usize {
-        let offset = self.bytes.len();
-        self.bytes.extend_from_slice(data);
-        self.bytes.resize(self.bytes.len().next_multiple_of(4), 0);
-        self.views.push(View {
-            offset,
-            length: data.len(),
-            target,
-        });
-        self.views.len() - 1
-    }
-
-    /// Appends `values` as little-endian f32 in a view of its own.
-    fn floats<const N: usize>(&mut self, values: impl Iterator<Item = [f32; N]>) -> usize {
-        let offset = self.bytes.len();
-        for v in values {
-            for c in v {
-                self.bytes.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        self.views.push(View {
-            offset,
-            length: self.bytes.len() - offset,
-            target: Some(ARRAY_BUFFER),
-        });
-        self.views.len() - 1
-    }
-}
-
-/// A primitive's attribute accessors (by attribute name) and its index accessor.
-struct PrimitiveAccessors {
-    attributes: Vec<(&'static str, usize)>,
-    indices: usize,
-}
-
-/// Counts of flawed values, for warnings.
-#[derive(Default)]
-struct Flaws {
-    nonfinite_positions: usize,
-    colors_clamped: usize,
-}
-
-/// `n` scaled to unit length; `n` itself if it has none ([`plan_meshes`] keeps those out).
-fn normalize(n: [f32; 3]) -> [f32; 3] {
-    let v = n.map(f64::from);
-    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if length.is_finite() && length > 0.0 {
-        v.map(|c| (c / length) as f32)
-    } else {
-        n
-    }
-}
-
-/// Bytes each vertex of `signature` takes in the buffer.
-fn vertex_bytes(signature: &Signature<'_>, colors: bool) -> u64 {
-    12 + 12 * u64::from(signature.normal) + 8 * u64::from(signature.uv) + 12 * u64::from(colors)
-}
-
-/// The JSON number for `v`, which callers keep finite (0 if not, which never happens).
-fn num(v: f32) -> String {
-    f32_text(v).unwrap_or_else(|| "0".to_owned())
-}
-
-fn num_array(values: &[f32]) -> String {
-    let items: Vec<String> = values.iter().map(|&v| num(v)).collect();
-    format!("[{}]", items.join(","))
 }
 
 impl Dropped {
@@ -954,32 +943,7 @@ fn plan_textures<'p>(
         }
         material_textures.push(refs);
     }
-    if !table.reduced.is_empty() {
-        warnings.push(format!(
-            "texture paths that are absolute or climb out of their folder, kept as their file \
-             name only: {}",
-            name_list(&table.reduced)
-        ));
-    }
-    if !table.unusable.is_empty() {
-        warnings.push(format!(
-            "texture paths without a file name, ignored: {}",
-            name_list(&table.unusable)
-        ));
-    }
-    if !table.missing.is_empty() {
-        warnings.push(format!(
-            "texture files not supplied, referenced by relative URI instead of embedded: {}",
-            name_list(&table.missing)
-        ));
-    }
-    if !table.unknown_format.is_empty() {
-        warnings.push(format!(
-            "texture files that are not PNG, JPEG or WebP, which glTF cannot embed; \
-             referenced by relative URI: {}",
-            name_list(&table.unknown_format)
-        ));
-    }
+    table.warn(warnings);
     if !bad_transforms.is_empty() {
         warnings.push(format!(
             "textures with a non-finite -o or -s, written without a transform: {}",
@@ -995,342 +959,548 @@ fn plan_textures<'p>(
     (table, material_textures)
 }
 
-/// The binary buffer with its views, and the accessors into it.
-struct Written {
-    bin: Bin,
-    accessors: Vec<Accessor>,
-    /// Per mesh, per primitive.
-    primitives: Vec<Vec<PrimitiveAccessors>>,
-    /// Per image, its buffer view when embedded.
-    image_views: Vec<Option<usize>>,
+// Laying out the buffer.
+
+/// Bytes each vertex of `signature` takes in the buffer.
+fn vertex_bytes(signature: &Signature<'_>, colors: bool) -> u64 {
+    12 + 12 * u64::from(signature.normal) + 8 * u64::from(signature.uv) + 12 * u64::from(colors)
 }
 
-/// Lays out the buffer: each primitive's attributes and indices, then the embedded images.
-/// Its size is checked against `limits` before anything is allocated.
-fn write_buffer(
-    obj: &Obj,
-    meshes: &[Mesh<'_>],
-    table: &ImageTable<'_>,
-    limits: &ConvertLimits,
-    warnings: &mut Vec<String>,
-    stats: &mut ConversionStats,
-) -> Result<Written, ConvertError> {
-    let colors = obj.colors.as_deref();
+/// Whether a primitive of `vertices` vertices gets `u16` indices.
+fn short_indices(vertices: usize) -> bool {
+    vertices <= MAX_U16_VERTICES
+}
+
+/// The buffer's size in bytes: every primitive's attributes and padded indices, then the
+/// embedded images. Saturating, so that no count can wrap it back under the limit.
+fn buffer_size(meshes: &[Mesh<'_>], colors: bool, table: &ImageTable<'_>) -> u64 {
     let mut total: u64 = 0;
     for primitive in meshes.iter().flat_map(|m| &m.primitives) {
         let vertices = primitive.vertices.len() as u64;
-        let index_size = if vertices <= MAX_U16_VERTICES as u64 {
+        let index_size = if short_indices(primitive.vertices.len()) {
             2
         } else {
             4
         };
         let indices = primitive.indices.len() as u64;
         total = total
-            .saturating_add(
-                vertices.saturating_mul(vertex_bytes(&primitive.signature, colors.is_some())),
-            )
+            .saturating_add(vertices.saturating_mul(vertex_bytes(&primitive.signature, colors)))
             .saturating_add(indices.saturating_mul(index_size).next_multiple_of(4));
     }
-    for image in &table.images {
-        if let Some((bytes, _)) = image.embedded {
-            total = total.saturating_add((bytes.len() as u64).next_multiple_of(4));
-        }
+    for (bytes, _) in table.images.iter().filter_map(|i| i.embedded) {
+        total = total.saturating_add((bytes.len() as u64).next_multiple_of(4));
     }
+    total
+}
+
+/// An empty buffer with room for `total` bytes, once `total` is known to be within `limits`:
+/// the size is checked before anything is allocated.
+fn allocate_buffer(total: u64, limits: &ConvertLimits) -> Result<Bin, ConvertError> {
+    const WHAT: &str = "the binary buffer's size in bytes";
     if total > limits.max_buffer_bytes {
-        return Err(too_large(
-            "the binary buffer's size in bytes",
-            total,
-            limits.max_buffer_bytes,
-        ));
+        return Err(too_large(WHAT, total, limits.max_buffer_bytes));
     }
-    let capacity = usize::try_from(total).map_err(|_| {
-        too_large(
-            "the binary buffer's size in bytes",
-            total,
-            usize::MAX as u64,
-        )
-    })?;
-    let mut bin = Bin {
+    let capacity = usize::try_from(total).map_err(|_| too_large(WHAT, total, usize::MAX as u64))?;
+    Ok(Bin {
         bytes: Vec::with_capacity(capacity),
         views: Vec::new(),
-    };
-
-    let mut accessors: Vec<Accessor> = Vec::new();
-    let mut flaws = Flaws::default();
-    // Per primitive: (attribute name, accessor) pairs and the index accessor.
-    let mut primitive_accessors: Vec<Vec<PrimitiveAccessors>> = Vec::new();
-    for (mesh_index, mesh) in meshes.iter().enumerate() {
-        let mut per_mesh = Vec::with_capacity(mesh.primitives.len());
-        for (primitive_index, primitive) in mesh.primitives.iter().enumerate() {
-            let count = primitive.vertices.len();
-            to_u32("the vertex count of one primitive", count)?;
-            to_u32("the index count of one primitive", primitive.indices.len())?;
-            stats.primitives += 1;
-            stats.vertices += count;
-            stats.triangles += primitive.indices.len() / 3;
-            let mut attributes = Vec::new();
-
-            let position = |c: &Corner| {
-                obj.positions
-                    .get(c.position as usize)
-                    .copied()
-                    .unwrap_or_default()
-            };
-            let mut min = [f32::INFINITY; 3];
-            let mut max = [f32::NEG_INFINITY; 3];
-            for p in primitive.vertices.iter().map(position) {
-                if p.iter().any(|c| !c.is_finite()) {
-                    flaws.nonfinite_positions += 1;
-                }
-                for k in 0..3 {
-                    if p[k].is_finite() {
-                        min[k] = min[k].min(p[k]);
-                        max[k] = max[k].max(p[k]);
-                    }
-                }
-            }
-            if let Some(k) = (0..3).find(|&k| min[k] > max[k]) {
-                return Err(ConvertError::NoFinitePosition {
-                    mesh: mesh_index,
-                    primitive: primitive_index,
-                    axis: ['x', 'y', 'z'][k],
-                });
-            }
-            let view = bin.floats(primitive.vertices.iter().map(position));
-            attributes.push(("POSITION", accessors.len()));
-            accessors.push(Accessor {
-                view,
-                component_type: FLOAT,
-                count,
-                kind: "VEC3",
-                bounds: Some((min, max)),
-            });
-
-            if primitive.signature.normal {
-                let normals: Vec<[f32; 3]> = primitive
-                    .vertices
-                    .iter()
-                    .map(|c| {
-                        let n = c
-                            .normal
-                            .and_then(|i| obj.normals.get(i as usize))
-                            .copied()
-                            .unwrap_or_default();
-                        normalize(n)
-                    })
-                    .collect();
-                let view = bin.floats(normals.into_iter());
-                attributes.push(("NORMAL", accessors.len()));
-                accessors.push(Accessor {
-                    view,
-                    component_type: FLOAT,
-                    count,
-                    kind: "VEC3",
-                    bounds: None,
-                });
-            }
-            if primitive.signature.uv {
-                let uvs: Vec<[f32; 2]> = primitive
-                    .vertices
-                    .iter()
-                    .map(|c| {
-                        let [u, v] =
-                            c.uv.and_then(|i| obj.uvs.get(i as usize))
-                                .copied()
-                                .unwrap_or_default();
-                        [u, 1.0 - v]
-                    })
-                    .collect();
-                let view = bin.floats(uvs.into_iter());
-                attributes.push(("TEXCOORD_0", accessors.len()));
-                accessors.push(Accessor {
-                    view,
-                    component_type: FLOAT,
-                    count,
-                    kind: "VEC2",
-                    bounds: None,
-                });
-            }
-            if let Some(colors) = colors {
-                let values: Vec<[f32; 3]> = primitive
-                    .vertices
-                    .iter()
-                    .map(|c| {
-                        let color = colors.get(c.position as usize).copied().unwrap_or([1.0; 3]);
-                        let mut clamped = false;
-                        let color = color.map(|v| unit(v, 1.0, &mut clamped));
-                        flaws.colors_clamped += usize::from(clamped);
-                        color
-                    })
-                    .collect();
-                let view = bin.floats(values.into_iter());
-                attributes.push(("COLOR_0", accessors.len()));
-                accessors.push(Accessor {
-                    view,
-                    component_type: FLOAT,
-                    count,
-                    kind: "VEC3",
-                    bounds: None,
-                });
-            }
-
-            let (index_bytes, component_type) = if count <= MAX_U16_VERTICES {
-                let bytes: Vec<u8> = primitive
-                    .indices
-                    .iter()
-                    .flat_map(|&i| (i as u16).to_le_bytes())
-                    .collect();
-                (bytes, UNSIGNED_SHORT)
-            } else {
-                let bytes: Vec<u8> = primitive
-                    .indices
-                    .iter()
-                    .flat_map(|&i| i.to_le_bytes())
-                    .collect();
-                (bytes, UNSIGNED_INT)
-            };
-            let view = bin.view(&index_bytes, Some(ELEMENT_ARRAY_BUFFER));
-            let indices = accessors.len();
-            accessors.push(Accessor {
-                view,
-                component_type,
-                count: primitive.indices.len(),
-                kind: "SCALAR",
-                bounds: None,
-            });
-            per_mesh.push(PrimitiveAccessors {
-                attributes,
-                indices,
-            });
-        }
-        primitive_accessors.push(per_mesh);
-    }
-    if flaws.nonfinite_positions > 0 {
-        warnings.push(format!(
-            "{} vertices have a NaN or infinite position, kept as they are; POSITION min and \
-             max cover the finite values only",
-            flaws.nonfinite_positions
-        ));
-    }
-    if flaws.colors_clamped > 0 {
-        warnings.push(format!(
-            "{} vertex colours outside [0, 1] were clamped (a NaN component became 1)",
-            flaws.colors_clamped
-        ));
-    }
-
-    // Images, after the geometry.
-    let mut image_views: Vec<Option<usize>> = Vec::with_capacity(table.images.len());
-    for image in &table.images {
-        match image.embedded {
-            Some((bytes, _)) => {
-                image_views.push(Some(bin.view(bytes, None)));
-                stats.images_embedded += 1;
-            }
-            None => {
-                image_views.push(None);
-                stats.images_referenced += 1;
-            }
-        }
-    }
-    debug_assert_eq!(bin.bytes.len() as u64, total);
-    Ok(Written {
-        bin,
-        accessors,
-        primitives: primitive_accessors,
-        image_views,
     })
 }
 
-/// The glTF extensions the document uses.
+// Writing the buffer.
+
+/// `i` as a glTF index, which is a u32: a document cannot list more objects than that.
+fn gltf_index<T>(what: &'static str, i: usize) -> Result<Index<T>, ConvertError> {
+    Ok(Index::new(to_u32(what, i)?))
+}
+
+/// The buffer under construction, and its views as glTF lists them.
+struct Bin {
+    bytes: Vec<u8>,
+    views: Vec<json::buffer::View>,
+}
+
+type ViewIndex = Index<json::buffer::View>;
+type AccessorIndex = Index<json::Accessor>;
+
+impl Bin {
+    /// Ends the view that began at `offset`, padding the buffer with zeros to a multiple of 4
+    /// so that the next view is aligned for any component type.
+    fn end_view(
+        &mut self,
+        offset: usize,
+        target: Option<Target>,
+    ) -> Result<ViewIndex, ConvertError> {
+        let length = self.bytes.len() - offset;
+        self.bytes.resize(self.bytes.len().next_multiple_of(4), 0);
+        let index = gltf_index("the buffer view count", self.views.len())?;
+        self.views.push(json::buffer::View {
+            buffer: Index::new(0),
+            byte_length: USize64::from(length),
+            // 0 is glTF's default, which tspace has always left unsaid.
+            byte_offset: (offset > 0).then(|| USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target: target.map(Valid),
+            extensions: None,
+            extras: Default::default(),
+        });
+        Ok(index)
+    }
+
+    /// `data` in a view of its own (an image's, which has no target).
+    fn view(&mut self, data: &[u8]) -> Result<ViewIndex, ConvertError> {
+        let offset = self.bytes.len();
+        self.bytes.extend_from_slice(data);
+        self.end_view(offset, None)
+    }
+
+    /// `values` as little-endian f32 in a view of their own.
+    fn floats<const N: usize>(
+        &mut self,
+        values: impl Iterator<Item = [f32; N]>,
+    ) -> Result<ViewIndex, ConvertError> {
+        let offset = self.bytes.len();
+        for v in values {
+            for c in v {
+                self.bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        self.end_view(offset, Some(Target::ArrayBuffer))
+    }
+
+    /// `indices` as little-endian `u16` when `short` (every index then fits), else `u32`.
+    fn indices(&mut self, indices: &[u32], short: bool) -> Result<ViewIndex, ConvertError> {
+        let offset = self.bytes.len();
+        if short {
+            for &i in indices {
+                self.bytes.extend_from_slice(&(i as u16).to_le_bytes());
+            }
+        } else {
+            for &i in indices {
+                self.bytes.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        self.end_view(offset, Some(Target::ElementArrayBuffer))
+    }
+}
+
+/// Counts of flawed values, for warnings.
+#[derive(Default)]
+struct Flaws {
+    nonfinite_positions: usize,
+    colors_clamped: usize,
+}
+
+impl Flaws {
+    fn warn(&self, warnings: &mut Vec<String>) {
+        if self.nonfinite_positions > 0 {
+            warnings.push(format!(
+                "{} vertices have a NaN or infinite position, kept as they are; POSITION min and \
+                 max cover the finite values only",
+                self.nonfinite_positions
+            ));
+        }
+        if self.colors_clamped > 0 {
+            warnings.push(format!(
+                "{} vertex colours outside [0, 1] were clamped (a NaN component became 1)",
+                self.colors_clamped
+            ));
+        }
+    }
+}
+
+/// The smallest and largest finite value on each axis, counting the positions with a value
+/// that is not finite; `Err(axis)` for an axis with no finite value at all.
+fn finite_bounds(
+    positions: impl Iterator<Item = [f32; 3]>,
+    nonfinite: &mut usize,
+) -> Result<([f32; 3], [f32; 3]), usize> {
+    let mut min = [f32::INFINITY; 3];
+    let mut max = [f32::NEG_INFINITY; 3];
+    for p in positions {
+        if p.iter().any(|c| !c.is_finite()) {
+            *nonfinite += 1;
+        }
+        for k in 0..3 {
+            if p[k].is_finite() {
+                min[k] = min[k].min(p[k]);
+                max[k] = max[k].max(p[k]);
+            }
+        }
+    }
+    match (0..3).find(|&k| min[k] > max[k]) {
+        Some(axis) => Err(axis),
+        None => Ok((min, max)),
+    }
+}
+
+/// `n` scaled to unit length; `n` itself if it has none ([`plan_meshes`] keeps those out).
+fn normalize(n: [f32; 3]) -> [f32; 3] {
+    let v = n.map(f64::from);
+    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if length.is_finite() && length > 0.0 {
+        v.map(|c| (c / length) as f32)
+    } else {
+        n
+    }
+}
+
+/// `values` as a JSON array of numbers (finite here: serde_json makes a non-finite one null).
+fn number_array(values: &[f32]) -> Value {
+    Value::Array(values.iter().map(|&v| Value::from(v)).collect())
+}
+
+const FLOAT_VEC2: (ComponentType, Type) = (ComponentType::F32, Type::Vec2);
+const FLOAT_VEC3: (ComponentType, Type) = (ComponentType::F32, Type::Vec3);
+
+/// A primitive's accessors: its attributes by name, and its indices.
+struct PrimitiveAccessors {
+    attributes: BTreeMap<Checked<Semantic>, AccessorIndex>,
+    indices: AccessorIndex,
+}
+
+/// Writes attributes, indices and images into the buffer, listing an accessor for each
+/// attribute and index list.
+struct Writer<'a> {
+    obj: &'a Obj,
+    bin: Bin,
+    accessors: Vec<json::Accessor>,
+    flaws: Flaws,
+}
+
+impl Writer<'_> {
+    /// Lists an accessor of `count` elements over the whole of `view`.
+    fn accessor(
+        &mut self,
+        view: ViewIndex,
+        (component, kind): (ComponentType, Type),
+        count: usize,
+        bounds: Option<([f32; 3], [f32; 3])>,
+    ) -> Result<AccessorIndex, ConvertError> {
+        let index = gltf_index("the accessor count", self.accessors.len())?;
+        self.accessors.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Valid(GenericComponentType(component)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(kind),
+            min: bounds.map(|(min, _)| number_array(&min)),
+            max: bounds.map(|(_, max)| number_array(&max)),
+            name: None,
+            normalized: false,
+            sparse: None,
+        });
+        Ok(index)
+    }
+
+    /// `POSITION`, with the `min` and `max` glTF requires (see the module documentation).
+    fn positions(
+        &mut self,
+        vertices: &[Corner],
+        (mesh, primitive): (usize, usize),
+    ) -> Result<AccessorIndex, ConvertError> {
+        let obj = self.obj;
+        let position = |c: &Corner| {
+            obj.positions
+                .get(c.position as usize)
+                .copied()
+                .unwrap_or_default()
+        };
+        let nonfinite = &mut self.flaws.nonfinite_positions;
+        let bounds = finite_bounds(vertices.iter().map(position), nonfinite).map_err(|k| {
+            ConvertError::NoFinitePosition {
+                mesh,
+                primitive,
+                axis: ['x', 'y', 'z'].get(k).copied().unwrap_or('?'),
+            }
+        })?;
+        let view = self.bin.floats(vertices.iter().map(position))?;
+        self.accessor(view, FLOAT_VEC3, vertices.len(), Some(bounds))
+    }
+
+    /// `NORMAL`, scaled to unit length ([`plan_meshes`] kept out normals that cannot be).
+    fn normals(&mut self, vertices: &[Corner]) -> Result<AccessorIndex, ConvertError> {
+        let obj = self.obj;
+        let normal = |c: &Corner| {
+            let n = c.normal.and_then(|i| obj.normals.get(i as usize));
+            normalize(n.copied().unwrap_or_default())
+        };
+        let view = self.bin.floats(vertices.iter().map(normal))?;
+        self.accessor(view, FLOAT_VEC3, vertices.len(), None)
+    }
+
+    /// `TEXCOORD_0`, with `v` flipped: OBJ's origin is the bottom left, glTF's the top left.
+    fn uvs(&mut self, vertices: &[Corner]) -> Result<AccessorIndex, ConvertError> {
+        let obj = self.obj;
+        let uv = |c: &Corner| {
+            let uv = c.uv.and_then(|i| obj.uvs.get(i as usize));
+            let [u, v] = uv.copied().unwrap_or_default();
+            [u, 1.0 - v]
+        };
+        let view = self.bin.floats(vertices.iter().map(uv))?;
+        self.accessor(view, FLOAT_VEC2, vertices.len(), None)
+    }
+
+    /// `COLOR_0`, clamped to [0, 1] as glTF requires (counted for a warning).
+    fn colors(
+        &mut self,
+        vertices: &[Corner],
+        colors: &[[f32; 3]],
+    ) -> Result<AccessorIndex, ConvertError> {
+        let clamped_count = &mut self.flaws.colors_clamped;
+        let color = |c: &Corner| {
+            let color = colors.get(c.position as usize).copied().unwrap_or([1.0; 3]);
+            let mut clamped = false;
+            let color = color.map(|v| unit(v, 1.0, &mut clamped));
+            *clamped_count += usize::from(clamped);
+            color
+        };
+        let view = self.bin.floats(vertices.iter().map(color))?;
+        self.accessor(view, FLOAT_VEC3, vertices.len(), None)
+    }
+
+    fn indices(&mut self, primitive: &Primitive<'_>) -> Result<AccessorIndex, ConvertError> {
+        let short = short_indices(primitive.vertices.len());
+        let view = self.bin.indices(&primitive.indices, short)?;
+        let component = if short {
+            ComponentType::U16
+        } else {
+            ComponentType::U32
+        };
+        let count = primitive.indices.len();
+        self.accessor(view, (component, Type::Scalar), count, None)
+    }
+
+    /// One primitive: its attributes, each in its own view, then its indices.
+    fn primitive(
+        &mut self,
+        primitive: &Primitive<'_>,
+        at: (usize, usize),
+    ) -> Result<PrimitiveAccessors, ConvertError> {
+        let vertices = &primitive.vertices;
+        to_u32("the vertex count of one primitive", vertices.len())?;
+        to_u32("the index count of one primitive", primitive.indices.len())?;
+        let mut attributes = BTreeMap::new();
+        attributes.insert(Valid(Semantic::Positions), self.positions(vertices, at)?);
+        if primitive.signature.normal {
+            attributes.insert(Valid(Semantic::Normals), self.normals(vertices)?);
+        }
+        if primitive.signature.uv {
+            attributes.insert(Valid(Semantic::TexCoords(0)), self.uvs(vertices)?);
+        }
+        if let Some(colors) = self.obj.colors.as_deref() {
+            attributes.insert(Valid(Semantic::Colors(0)), self.colors(vertices, colors)?);
+        }
+        let indices = self.indices(primitive)?;
+        Ok(PrimitiveAccessors {
+            attributes,
+            indices,
+        })
+    }
+}
+
+/// The written buffer with its views and accessors.
+struct Written {
+    bytes: Vec<u8>,
+    views: Vec<json::buffer::View>,
+    accessors: Vec<json::Accessor>,
+    /// Per mesh, per primitive.
+    primitives: Vec<Vec<PrimitiveAccessors>>,
+    /// Per image, its buffer view when embedded.
+    image_views: Vec<Option<ViewIndex>>,
+    flaws: Flaws,
+}
+
+/// Writes every primitive, mesh by mesh, then the embedded images after the geometry.
+fn write_buffer(
+    obj: &Obj,
+    meshes: &[Mesh<'_>],
+    table: &ImageTable<'_>,
+    bin: Bin,
+) -> Result<Written, ConvertError> {
+    let mut writer = Writer {
+        obj,
+        bin,
+        accessors: Vec::new(),
+        flaws: Flaws::default(),
+    };
+    let mut primitives = Vec::with_capacity(meshes.len());
+    for (m, mesh) in meshes.iter().enumerate() {
+        let written = mesh.primitives.iter().enumerate();
+        let written = written.map(|(p, primitive)| writer.primitive(primitive, (m, p)));
+        primitives.push(written.collect::<Result<Vec<_>, _>>()?);
+    }
+    let image_views = table
+        .images
+        .iter()
+        .map(|image| {
+            let embedded = image.embedded.map(|(bytes, _)| writer.bin.view(bytes));
+            embedded.transpose()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Written {
+        bytes: writer.bin.bytes,
+        views: writer.bin.views,
+        accessors: writer.accessors,
+        primitives,
+        image_views,
+        flaws: writer.flaws,
+    })
+}
+
+/// The conversion's numbers, from its plan.
+fn count(meshes: &[Mesh<'_>], materials: usize, table: &ImageTable<'_>) -> ConversionStats {
+    let primitives = || meshes.iter().flat_map(|m| &m.primitives);
+    let embedded = table.images.iter().filter(|i| i.embedded.is_some()).count();
+    ConversionStats {
+        meshes: meshes.len(),
+        primitives: primitives().count(),
+        vertices: primitives().map(|p| p.vertices.len()).sum(),
+        triangles: primitives().map(|p| p.indices.len() / 3).sum(),
+        materials,
+        images_embedded: embedded,
+        images_referenced: table.images.len() - embedded,
+    }
+}
+
+// Building the document.
+
+/// The glTF extensions the materials use.
 #[derive(Default)]
 struct Extensions {
     texture_transform: bool,
     emissive_strength: bool,
 }
 
-/// Each material's JSON object, noting the extensions they use.
-fn materials_json(
+/// A texture reference's `KHR_texture_transform`, as plain JSON: gltf-json's typed one always
+/// writes its `texCoord`, as `null` when unset, which glTF does not allow.
+fn transform_extension(r: &TextureRef, uses: &mut Extensions) -> Option<Map<String, Value>> {
+    let Transform { offset, scale } = r.transform?;
+    uses.texture_transform = true;
+    let mut transform = Map::new();
+    transform.insert("offset".to_owned(), number_array(&offset));
+    transform.insert("scale".to_owned(), number_array(&scale));
+    let mut extensions = Map::new();
+    extensions.insert(TEXTURE_TRANSFORM.to_owned(), Value::Object(transform));
+    Some(extensions)
+}
+
+fn texture_info(
+    r: &TextureRef,
+    uses: &mut Extensions,
+) -> Result<json::texture::Info, ConvertError> {
+    // gltf-json's KHR_texture_transform feature, if any crate in the build turned it on, adds
+    // a field here, which this leaves unset.
+    #[allow(clippy::needless_update)]
+    let extensions = transform_extension(r, uses).map(|others| json::extensions::texture::Info {
+        others,
+        ..Default::default()
+    });
+    Ok(json::texture::Info {
+        index: gltf_index("the texture count", r.index)?,
+        tex_coord: 0,
+        extensions,
+        extras: Default::default(),
+    })
+}
+
+/// `normalTexture`, with `scale` from the map's `-bm` (glTF's default 1 when it has none, or
+/// none that is finite).
+fn normal_texture(
+    r: &TextureRef,
+    m: &Material,
+    uses: &mut Extensions,
+) -> Result<NormalTexture, ConvertError> {
+    let scale = normal_source(m).and_then(|t| t.bump_multiplier);
+    let extensions = transform_extension(r, uses)
+        .map(|others| json::extensions::material::NormalTexture { others });
+    Ok(NormalTexture {
+        index: gltf_index("the texture count", r.index)?,
+        scale: scale.filter(|s| s.is_finite()).unwrap_or(1.0),
+        tex_coord: 0,
+        extensions,
+        extras: Default::default(),
+    })
+}
+
+/// A material in glTF's terms (see the module documentation), and whether any of its values
+/// had to be clamped or replaced.
+fn gltf_material(
+    plan: &MaterialPlan<'_>,
+    refs: &MaterialTextures,
+    uses: &mut Extensions,
+) -> Result<(json::Material, bool), ConvertError> {
+    let name = Some(plan.name.to_owned());
+    let Some(m) = plan.source else {
+        // A `usemtl` name the MTL lacks: white, non-metallic, fully rough.
+        let pbr_metallic_roughness = PbrMetallicRoughness {
+            metallic_factor: StrengthFactor(0.0),
+            ..Default::default()
+        };
+        let material = json::Material {
+            name,
+            pbr_metallic_roughness,
+            ..Default::default()
+        };
+        return Ok((material, false));
+    };
+    let values = pbr(m);
+    let emissive_strength = values.emissive_strength.map(|strength| {
+        uses.emissive_strength = true;
+        json::extensions::material::Material {
+            emissive_strength: Some(EmissiveStrength {
+                emissive_strength: EmissiveStrengthFactor(strength),
+            }),
+            ..Default::default()
+        }
+    });
+    let base_color_texture = refs.base_color.as_ref();
+    let material = json::Material {
+        name,
+        alpha_mode: Valid(if values.blend {
+            AlphaMode::Blend
+        } else {
+            AlphaMode::Opaque
+        }),
+        pbr_metallic_roughness: PbrMetallicRoughness {
+            base_color_factor: PbrBaseColorFactor(values.base_color),
+            base_color_texture: base_color_texture
+                .map(|r| texture_info(r, uses))
+                .transpose()?,
+            metallic_factor: StrengthFactor(values.metallic),
+            roughness_factor: StrengthFactor(values.roughness),
+            ..Default::default()
+        },
+        normal_texture: (refs.normal.as_ref())
+            .map(|r| normal_texture(r, m, uses))
+            .transpose()?,
+        emissive_factor: EmissiveFactor(values.emissive),
+        extensions: emissive_strength,
+        ..Default::default()
+    };
+    Ok((material, values.adjusted))
+}
+
+/// Every material in glTF's terms, warning about those whose values were clamped or replaced.
+fn gltf_materials(
     materials: &[MaterialPlan<'_>],
     textures: &[MaterialTextures],
-    extensions: &mut Extensions,
+    uses: &mut Extensions,
     warnings: &mut Vec<String>,
-) -> Vec<String> {
+) -> Result<Vec<json::Material>, ConvertError> {
     let mut adjusted = Vec::new();
-    let mut adjusted_seen = std::collections::HashSet::new();
-    let mut material_json = Vec::with_capacity(materials.len());
-    let texture_info = |r: &TextureRef, extra: &str, uses_transform: &mut bool| {
-        let mut out = format!("{{\"index\":{}{extra}", r.index);
-        if let Some(Transform { offset, scale }) = r.transform {
-            *uses_transform = true;
-            out += &format!(
-                ",\"extensions\":{{\"{TEXTURE_TRANSFORM}\":{{\"offset\":{},\"scale\":{}}}}}",
-                num_array(&offset),
-                num_array(&scale)
-            );
-        }
-        out.push('}');
-        out
-    };
+    let mut adjusted_seen = HashSet::new();
+    let mut out = Vec::with_capacity(materials.len());
     for (plan, refs) in materials.iter().zip(textures) {
-        let mut fields = vec![format!("\"name\":{}", escape_str(plan.name))];
-        let Some(m) = plan.source else {
-            fields.push("\"pbrMetallicRoughness\":{\"metallicFactor\":0}".to_owned());
-            material_json.push(format!("{{{}}}", fields.join(",")));
-            continue;
-        };
-        let values = pbr(m);
+        let (material, clamped) = gltf_material(plan, refs, uses)?;
         // A material and its untextured copy are one name in the warning.
-        if values.adjusted && adjusted_seen.insert(plan.name) {
+        if clamped && adjusted_seen.insert(plan.name) {
             adjusted.push(plan.name.to_owned());
         }
-        let mut pbr_fields = Vec::new();
-        if values.base_color != [1.0; 4] {
-            pbr_fields.push(format!(
-                "\"baseColorFactor\":{}",
-                num_array(&values.base_color)
-            ));
-        }
-        if let Some(r) = &refs.base_color {
-            pbr_fields.push(format!(
-                "\"baseColorTexture\":{}",
-                texture_info(r, "", &mut extensions.texture_transform)
-            ));
-        }
-        pbr_fields.push(format!("\"metallicFactor\":{}", num(values.metallic)));
-        pbr_fields.push(format!("\"roughnessFactor\":{}", num(values.roughness)));
-        fields.push(format!(
-            "\"pbrMetallicRoughness\":{{{}}}",
-            pbr_fields.join(",")
-        ));
-        if let Some(r) = &refs.normal {
-            let scale = normal_source(m)
-                .and_then(|t| t.bump_multiplier)
-                .filter(|s| s.is_finite() && *s != 1.0)
-                .map(|s| format!(",\"scale\":{}", num(s)))
-                .unwrap_or_default();
-            fields.push(format!(
-                "\"normalTexture\":{}",
-                texture_info(r, &scale, &mut extensions.texture_transform)
-            ));
-        }
-        if values.emissive != [0.0; 3] {
-            fields.push(format!(
-                "\"emissiveFactor\":{}",
-                num_array(&values.emissive)
-            ));
-        }
-        if let Some(strength) = values.emissive_strength {
-            extensions.emissive_strength = true;
-            fields.push(format!(
-                "\"extensions\":{{\"{EMISSIVE_STRENGTH}\":{{\"emissiveStrength\":{}}}}}",
-                num(strength)
-            ));
-        }
-        if values.blend {
-            fields.push("\"alphaMode\":\"BLEND\"".to_owned());
-        }
-        material_json.push(format!("{{{}}}", fields.join(",")));
+        out.push(material);
     }
     if !adjusted.is_empty() {
         warnings.push(format!(
@@ -1339,186 +1509,312 @@ fn materials_json(
             name_list(&adjusted)
         ));
     }
-    material_json
+    Ok(out)
 }
 
-/// The whole document.
-fn document_json(
+/// One node and one mesh per planned mesh, each primitive with its accessors and material.
+fn gltf_meshes(
     meshes: &[Mesh<'_>],
-    material_table: &MaterialTable<'_>,
-    material_json: &[String],
+    accessors: Vec<Vec<PrimitiveAccessors>>,
+    materials: &MaterialTable<'_>,
+) -> Result<(Vec<json::Node>, Vec<json::Mesh>), ConvertError> {
+    let mut nodes = Vec::with_capacity(meshes.len());
+    let mut out = Vec::with_capacity(meshes.len());
+    let per_mesh = meshes.iter().zip(accessors).zip(&materials.per_primitive);
+    for (i, ((mesh, accessors), slots)) in per_mesh.enumerate() {
+        let name = mesh.name.map(str::to_owned);
+        nodes.push(json::Node {
+            mesh: Some(gltf_index("the mesh count", i)?),
+            name: name.clone(),
+            ..Default::default()
+        });
+        let mut primitives = Vec::with_capacity(accessors.len());
+        for (primitive, slot) in accessors.into_iter().zip(slots) {
+            primitives.push(json::mesh::Primitive {
+                attributes: primitive.attributes,
+                indices: Some(primitive.indices),
+                material: slot
+                    .map(|m| gltf_index("the material count", m))
+                    .transpose()?,
+                mode: Valid(Mode::Triangles),
+                targets: None,
+                extensions: None,
+                extras: Default::default(),
+            });
+        }
+        out.push(json::Mesh {
+            name,
+            primitives,
+            weights: None,
+            extensions: None,
+            extras: Default::default(),
+        });
+    }
+    Ok((nodes, out))
+}
+
+/// A texture of image `source`. A WebP image is named through `EXT_texture_webp` only: core
+/// glTF has no WebP, and there is no fallback image to name in `source`.
+fn gltf_texture(source: usize, format: Option<ImageFormat>) -> Result<json::Texture, ConvertError> {
+    let source = gltf_index("the image count", source)?;
+    let webp = format == Some(ImageFormat::Webp);
+    let extensions = webp.then(|| {
+        let mut reference = Map::new();
+        reference.insert("source".to_owned(), Value::from(source.value()));
+        let mut others = Map::new();
+        others.insert(TEXTURE_WEBP.to_owned(), Value::Object(reference));
+        json::extensions::texture::Texture { others }
+    });
+    Ok(json::Texture {
+        name: None,
+        sampler: Some(Index::new(0)),
+        // gltf-json's own mark for a texture without `source` (it reads one as this), which
+        // it then leaves out.
+        source: if webp { Index::new(u32::MAX) } else { source },
+        extensions,
+        extras: Default::default(),
+    })
+}
+
+/// An image: in the buffer with its MIME type when embedded, else a relative URI.
+fn gltf_image(image: &ImagePlan<'_>, view: Option<ViewIndex>) -> json::Image {
+    let (buffer_view, mime_type, uri) = match (image.embedded, view) {
+        (Some((_, format)), Some(view)) => {
+            let mime = json::image::MimeType(format.mime().to_owned());
+            (Some(view), Some(mime), None)
+        }
+        _ => (None, None, Some(percent_encode_path(&image.path))),
+    };
+    json::Image {
+        name: Some(image.name.clone()),
+        buffer_view,
+        mime_type,
+        uri,
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
+/// The document's textures, samplers and images.
+#[derive(Default)]
+struct GltfImages {
+    textures: Vec<json::Texture>,
+    samplers: Vec<json::texture::Sampler>,
+    images: Vec<json::Image>,
+}
+
+/// One texture per image, all sharing one sampler (`REPEAT` both ways, as OBJ viewers
+/// sample), and the images; nothing at all without images.
+fn gltf_images(
     table: &ImageTable<'_>,
-    written: &Written,
-    extensions: &Extensions,
-) -> String {
-    let uses_webp = table
+    views: &[Option<ViewIndex>],
+) -> Result<GltfImages, ConvertError> {
+    if table.images.is_empty() {
+        return Ok(GltfImages::default());
+    }
+    let mut textures = Vec::with_capacity(table.images.len());
+    for (i, image) in table.images.iter().enumerate() {
+        textures.push(gltf_texture(i, image.embedded.map(|(_, f)| f))?);
+    }
+    let images = table.images.iter().zip(views);
+    let images = images.map(|(image, view)| gltf_image(image, *view));
+    let repeat = json::texture::Sampler {
+        wrap_s: Valid(WrappingMode::Repeat),
+        wrap_t: Valid(WrappingMode::Repeat),
+        ..Default::default()
+    };
+    Ok(GltfImages {
+        textures,
+        samplers: vec![repeat],
+        images: images.collect(),
+    })
+}
+
+/// The extensions the document uses and those it requires, in a fixed order.
+fn extension_lists(uses: &Extensions, table: &ImageTable<'_>) -> (Vec<String>, Vec<String>) {
+    let webp = table
         .images
         .iter()
         .any(|i| matches!(i.embedded, Some((_, ImageFormat::Webp))));
-    let mut extensions_used = Vec::new();
-    if extensions.emissive_strength {
-        extensions_used.push(EMISSIVE_STRENGTH);
-    }
-    if extensions.texture_transform {
-        extensions_used.push(TEXTURE_TRANSFORM);
-    }
-    if uses_webp {
-        extensions_used.push(TEXTURE_WEBP);
-    }
-    let quoted = |names: &[&str]| {
-        let items: Vec<String> = names.iter().map(|n| escape_str(n)).collect();
-        format!("[{}]", items.join(","))
+    let used = [
+        (uses.emissive_strength, EMISSIVE_STRENGTH),
+        (uses.texture_transform, TEXTURE_TRANSFORM),
+        (webp, TEXTURE_WEBP),
+    ];
+    let used = used
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, n)| (*n).to_owned());
+    // Without a fallback image, a reader that cannot decode WebP has nothing to show.
+    let required = webp.then(|| TEXTURE_WEBP.to_owned());
+    (used.collect(), required.into_iter().collect())
+}
+
+/// The materials in glTF's terms, and the extensions they use.
+struct GltfMaterials {
+    materials: Vec<json::Material>,
+    uses: Extensions,
+}
+
+/// The whole document: one scene of every node, buffer 0 without a `uri`.
+fn gltf_root(
+    meshes: &[Mesh<'_>],
+    material_table: &MaterialTable<'_>,
+    materials: GltfMaterials,
+    table: &ImageTable<'_>,
+    written: Written,
+) -> Result<(Root, Vec<u8>), ConvertError> {
+    let (extensions_used, extensions_required) = extension_lists(&materials.uses, table);
+    let (nodes, gltf_meshes) = gltf_meshes(meshes, written.primitives, material_table)?;
+    let scene_nodes = (0..nodes.len()).map(|i| gltf_index("the node count", i));
+    let scene = json::Scene {
+        nodes: scene_nodes.collect::<Result<_, _>>()?,
+        name: None,
+        extensions: None,
+        extras: Default::default(),
     };
-
-    let mut json = String::new();
-    json += &format!(
-        "{{\"asset\":{{\"version\":\"2.0\",\"generator\":{}}}",
-        escape_str(&format!("tspace {}", env!("CARGO_PKG_VERSION")))
-    );
-    if !extensions_used.is_empty() {
-        json += &format!(",\"extensionsUsed\":{}", quoted(&extensions_used));
-    }
-    if uses_webp {
-        json += &format!(",\"extensionsRequired\":{}", quoted(&[TEXTURE_WEBP]));
-    }
-    let nodes: Vec<String> = (0..meshes.len()).map(|i| i.to_string()).collect();
-    json += &format!(
-        ",\"scene\":0,\"scenes\":[{{\"nodes\":[{}]}}]",
-        nodes.join(",")
-    );
-
-    let name_field = |name: Option<&str>| {
-        name.map(|n| format!("\"name\":{},", escape_str(n)))
-            .unwrap_or_default()
+    let images = gltf_images(table, &written.image_views)?;
+    let buffer = json::Buffer {
+        byte_length: USize64::from(written.bytes.len()),
+        uri: None,
+        name: None,
+        extensions: None,
+        extras: Default::default(),
     };
-    let node_json: Vec<String> = meshes
-        .iter()
-        .enumerate()
-        .map(|(i, m)| format!("{{{}\"mesh\":{i}}}", name_field(m.name)))
-        .collect();
-    json += &format!(",\"nodes\":[{}]", node_json.join(","));
+    let generator = format!("tspace {}", env!("CARGO_PKG_VERSION"));
+    let root = Root {
+        asset: json::Asset {
+            generator: Some(generator),
+            ..Default::default()
+        },
+        extensions_used,
+        extensions_required,
+        scene: Some(Index::new(0)),
+        scenes: vec![scene],
+        nodes,
+        meshes: gltf_meshes,
+        materials: materials.materials,
+        textures: images.textures,
+        samplers: images.samplers,
+        images: images.images,
+        accessors: written.accessors,
+        buffer_views: written.views,
+        buffers: vec![buffer],
+        ..Default::default()
+    };
+    Ok((root, written.bytes))
+}
 
-    let mut mesh_json = Vec::with_capacity(meshes.len());
-    for ((mesh, accessors_of), slots) in meshes
-        .iter()
-        .zip(&written.primitives)
-        .zip(&material_table.per_primitive)
-    {
-        let primitives: Vec<String> = accessors_of
-            .iter()
-            .zip(slots)
-            .map(
-                |(
-                    PrimitiveAccessors {
-                        attributes,
-                        indices,
-                    },
-                    material,
-                )| {
-                    let attributes: Vec<String> = attributes
-                        .iter()
-                        .map(|(name, accessor)| format!("\"{name}\":{accessor}"))
-                        .collect();
-                    let material = material
-                        .map(|m| format!(",\"material\":{m}"))
-                        .unwrap_or_default();
-                    let attributes = attributes.join(",");
-                    format!(
-                        "{{\"attributes\":{{{attributes}}},\"indices\":{indices}{material},\
-                     \"mode\":{TRIANGLES}}}"
-                    )
-                },
-            )
-            .collect();
-        debug_assert_eq!(primitives.len(), mesh.primitives.len());
-        mesh_json.push(format!(
-            "{{{}\"primitives\":[{}]}}",
-            name_field(mesh.name),
-            primitives.join(",")
-        ));
-    }
-    json += &format!(",\"meshes\":[{}]", mesh_json.join(","));
+// Writing the document.
 
-    if !material_json.is_empty() {
-        json += &format!(",\"materials\":[{}]", material_json.join(","));
-    }
-    if !table.images.is_empty() {
-        let textures: Vec<String> = table
-            .images
-            .iter()
-            .enumerate()
-            .map(|(i, image)| match image.embedded {
-                Some((_, ImageFormat::Webp)) => format!(
-                    "{{\"sampler\":0,\"extensions\":{{\"{TEXTURE_WEBP}\":{{\"source\":{i}}}}}}}"
-                ),
-                _ => format!("{{\"sampler\":0,\"source\":{i}}}"),
-            })
-            .collect();
-        json += &format!(",\"textures\":[{}]", textures.join(","));
-        json += &format!(",\"samplers\":[{{\"wrapS\":{REPEAT},\"wrapT\":{REPEAT}}}]");
-        let image_json: Vec<String> = table
-            .images
-            .iter()
-            .zip(&written.image_views)
-            .map(|(image, view)| match (image.embedded, view) {
-                (Some((_, format)), Some(view)) => format!(
-                    "{{\"name\":{},\"bufferView\":{view},\"mimeType\":\"{}\"}}",
-                    escape_str(&image.name),
-                    format.mime()
-                ),
-                _ => format!(
-                    "{{\"name\":{},\"uri\":{}}}",
-                    escape_str(&image.name),
-                    escape_str(&percent_encode_path(&image.path))
-                ),
-            })
-            .collect();
-        json += &format!(",\"images\":[{}]", image_json.join(","));
-    }
+fn json_error(e: impl fmt::Display) -> ConvertError {
+    ConvertError::Json(e.to_string())
+}
 
-    let accessor_json: Vec<String> = written
-        .accessors
-        .iter()
-        .map(|a| {
-            let bounds = a
-                .bounds
-                .map(|(min, max)| {
-                    format!(",\"min\":{},\"max\":{}", num_array(&min), num_array(&max))
-                })
-                .unwrap_or_default();
-            format!(
-                "{{\"bufferView\":{},\"componentType\":{},\"count\":{},\"type\":\"{}\"{bounds}}}",
-                a.view, a.component_type, a.count, a.kind
-            )
-        })
-        .collect();
-    json += &format!(",\"accessors\":[{}]", accessor_json.join(","));
-    let view_json: Vec<String> = written
-        .bin
-        .views
-        .iter()
-        .map(|v| {
-            let offset = if v.offset > 0 {
-                format!(",\"byteOffset\":{}", v.offset)
-            } else {
-                String::new()
-            };
-            let target = v
-                .target
-                .map(|t| format!(",\"target\":{t}"))
-                .unwrap_or_default();
-            format!(
-                "{{\"buffer\":0{offset},\"byteLength\":{}{target}}}",
-                v.length
-            )
-        })
-        .collect();
-    json += &format!(",\"bufferViews\":[{}]", view_json.join(","));
-    json += &format!(
-        ",\"buffers\":[{{\"byteLength\":{}}}]}}",
-        written.bin.bytes.len()
-    );
-    json
+/// gltf-json writes some members whatever their value and leaves out a primitive's `mode`
+/// when it is `TRIANGLES`. Converted documents have always left glTF's defaults unsaid in
+/// materials (except `metallicFactor`, and `roughnessFactor` of a material from the MTL) and
+/// always stated `mode`; this keeps them exactly what they were.
+fn keep_members_as_before(doc: &mut Value, materials: &[MaterialPlan<'_>]) {
+    let drop_if = |object: &mut Map<String, Value>, key: &str, default: Value| {
+        if object.get(key) == Some(&default) {
+            object.remove(key);
+        }
+    };
+    let one = || Value::from(1.0f32);
+    let zero = || Value::from(0.0f32);
+    for primitive in members(doc, "meshes").flat_map(|m| members(m, "primitives")) {
+        if let Some(primitive) = primitive.as_object_mut() {
+            primitive.insert("mode".to_owned(), Value::from(TRIANGLES));
+        }
+    }
+    let gltf_materials = members(doc, "materials").filter_map(Value::as_object_mut);
+    for (material, plan) in gltf_materials.zip(materials) {
+        drop_if(material, "alphaMode", Value::from("OPAQUE"));
+        drop_if(material, "doubleSided", Value::from(false));
+        drop_if(material, "emissiveFactor", Value::Array(vec![zero(); 3]));
+        if let Some(Value::Object(normal)) = material.get_mut("normalTexture") {
+            drop_if(normal, "scale", one());
+            drop_if(normal, "texCoord", Value::from(0));
+        }
+        let Some(Value::Object(pbr)) = material.get_mut("pbrMetallicRoughness") else {
+            continue;
+        };
+        drop_if(pbr, "baseColorFactor", Value::Array(vec![one(); 4]));
+        if plan.source.is_none() {
+            pbr.remove("roughnessFactor");
+        }
+        if let Some(Value::Object(base)) = pbr.get_mut("baseColorTexture") {
+            drop_if(base, "texCoord", Value::from(0));
+        }
+    }
+}
+
+/// The elements of the array `key` of `value` (none when it has no such array).
+fn members<'v>(value: &'v mut Value, key: &str) -> impl Iterator<Item = &'v mut Value> {
+    let array = value.get_mut(key).and_then(Value::as_array_mut);
+    array.into_iter().flatten()
+}
+
+/// Compact JSON whose numbers read as they always have: every float in the document is an
+/// f32, which serde_json's `Value` holds as the f64 of equal value, and would spell as one
+/// (`0.10000000149011612` for 0.1); this spells it as the shortest text of the f32.
+struct F32Spelling;
+
+impl serde_json::ser::Formatter for F32Spelling {
+    fn write_f64<W: ?Sized + io::Write>(&mut self, writer: &mut W, value: f64) -> io::Result<()> {
+        let narrow = value as f32;
+        match f32_text(narrow) {
+            Some(text) if f64::from(narrow) == value => writer.write_all(text.as_bytes()),
+            _ => serde_json::ser::CompactFormatter.write_f64(writer, value),
+        }
+    }
+}
+
+/// A JSON value written with each primitive's `attributes` in the order of their accessors,
+/// which is the order they were written in (`POSITION`, `NORMAL`, `TEXCOORD_0`, `COLOR_0`),
+/// where `Value` would sort them by name. The tangent step takes a primitive's attributes in
+/// document order, and so lays out what it writes in that order. Other members come in
+/// `Value`'s order, which nothing depends on.
+struct InOrder<'v> {
+    value: &'v Value,
+    by_accessor: bool,
+}
+
+impl serde::Serialize for InOrder<'_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self.value {
+            Value::Object(members) => {
+                let mut members: Vec<(&String, &Value)> = members.iter().collect();
+                if self.by_accessor {
+                    members.sort_by_key(|(_, accessor)| accessor.as_u64());
+                }
+                serializer.collect_map(members.into_iter().map(|(key, value)| {
+                    let by_accessor = key == "attributes";
+                    (key, InOrder { value, by_accessor })
+                }))
+            }
+            Value::Array(items) => serializer.collect_seq(items.iter().map(|value| InOrder {
+                value,
+                by_accessor: false,
+            })),
+            other => other.serialize(serializer),
+        }
+    }
+}
+
+/// The document as JSON text.
+fn to_json(root: &Root, materials: &[MaterialPlan<'_>]) -> Result<String, ConvertError> {
+    let mut doc = serde_json::to_value(root).map_err(json_error)?;
+    keep_members_as_before(&mut doc, materials);
+    let mut text = Vec::new();
+    let mut serializer = serde_json::Serializer::with_formatter(&mut text, F32Spelling);
+    let in_order = InOrder {
+        value: &doc,
+        by_accessor: false,
+    };
+    serde::Serialize::serialize(&in_order, &mut serializer).map_err(json_error)?;
+    String::from_utf8(text).map_err(json_error)
 }
 
 /// Converts a parsed OBJ (and its MTL, if any) to a glTF document; see the module
@@ -1534,30 +1830,25 @@ pub fn obj_to_gltf(
     dropped.warn(&mut warnings);
     let material_table = plan_materials(&meshes, mtl, &mut warnings);
     let (table, textures) = plan_textures(&material_table.materials, images, &mut warnings);
-    let mut stats = ConversionStats {
-        meshes: meshes.len(),
-        materials: material_table.materials.len(),
-        ..ConversionStats::default()
-    };
-    let written = write_buffer(obj, &meshes, &table, limits, &mut warnings, &mut stats)?;
-    let mut extensions = Extensions::default();
-    let material_json = materials_json(
+    let total = buffer_size(&meshes, obj.colors.is_some(), &table);
+    let bin = allocate_buffer(total, limits)?;
+    let written = write_buffer(obj, &meshes, &table, bin)?;
+    debug_assert_eq!(written.bytes.len() as u64, total);
+    written.flaws.warn(&mut warnings);
+    let stats = count(&meshes, material_table.materials.len(), &table);
+    let mut uses = Extensions::default();
+    let materials = gltf_materials(
         &material_table.materials,
         &textures,
-        &mut extensions,
+        &mut uses,
         &mut warnings,
-    );
-    let json = document_json(
-        &meshes,
-        &material_table,
-        &material_json,
-        &table,
-        &written,
-        &extensions,
-    );
+    )?;
+    let materials = GltfMaterials { materials, uses };
+    let (root, bin) = gltf_root(&meshes, &material_table, materials, &table, written)?;
+    let json = to_json(&root, &material_table.materials)?;
     Ok(Converted {
         json,
-        bin: written.bin.bytes,
+        bin,
         warnings,
         stats,
     })
@@ -1846,6 +2137,53 @@ mod tests {
                 ..ConversionStats::default()
             }
         );
+    }
+
+    /// What the conversion has always written and the tangent step relies on: attributes in
+    /// the order of their accessors (it lays out a split primitive in document order),
+    /// `mode` stated, glTF's defaults left out of materials, floats spelled as f32.
+    #[test]
+    fn the_document_keeps_its_attribute_order_mode_and_spelling() {
+        let text = "mtllib m.mtl\nv 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nvt 0 0\nvt 1 0\n\
+                    vt 0 1\nvn 0 0 1\nusemtl a\nf 1/1/1 2/2/1 3/3/1\nusemtl missing\nf 1 2 3\n";
+        let mtl = "newmtl a\nKd 0.1 0.2 0.3\nNs 100\n";
+        let c = convert_with(text, Some(mtl), &[]);
+        with_json(&c, |root| {
+            let meshes = root.get("meshes").unwrap();
+            let primitives = meshes.index(0).unwrap().get("primitives").unwrap();
+            let first = primitives.index(0).unwrap();
+            let attributes = first.get("attributes").unwrap().as_object().unwrap();
+            let keys: Vec<&str> = attributes.iter().map(|m| m.key.as_str()).collect();
+            assert_eq!(keys, ["POSITION", "NORMAL", "TEXCOORD_0", "COLOR_0"]);
+            for p in primitives.as_array().unwrap() {
+                assert_eq!(p.get("mode").unwrap().as_u64(), Some(4));
+            }
+            let materials = root.get("materials").unwrap();
+            let a = materials.index(0).unwrap();
+            for key in ["alphaMode", "doubleSided", "emissiveFactor"] {
+                assert!(a.get(key).is_none(), "{key}");
+            }
+            let pbr = a.get("pbrMetallicRoughness").unwrap();
+            let factor = pbr.get("baseColorFactor").unwrap().as_array().unwrap();
+            let spelled: Vec<&str> = factor
+                .iter()
+                .map(|n| n.as_number().unwrap().raw())
+                .collect();
+            assert_eq!(spelled, ["0.1", "0.2", "0.3", "1"]);
+            assert!(pbr.get("roughnessFactor").is_some());
+            let missing = materials
+                .index(1)
+                .unwrap()
+                .get("pbrMetallicRoughness")
+                .unwrap();
+            let keys: Vec<&str> = missing
+                .as_object()
+                .unwrap()
+                .iter()
+                .map(|m| m.key.as_str())
+                .collect();
+            assert_eq!(keys, ["metallicFactor"]);
+        });
     }
 
     #[test]
