@@ -287,6 +287,8 @@ fn convert_to_glb(
     let converted = obj_gltf::obj_to_gltf(parsed, mtl, &image_parts, &ConvertLimits::default())
         .map_err(|e| match e {
             ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
+            // The document tspace built would not serialize: a bug here, not the file's fault.
+            ConvertError::Json(_) => SceneError::new(ProblemCode::Internal, e.to_string()),
             _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
         })?;
     supplied.warnings.extend(converted.warnings);

@@ -143,13 +143,22 @@ const SHARD_VERTICES: usize = 1 << 13;
 /// the first of each class is found first. Class ids are then numbered by first appearance,
 /// exactly as [`weld_in_one_table`] numbers them.
 fn weld_in_shards(key: &Key<'_>, parallel: bool) -> Weld {
+    let first_of_vertex = first_equal_vertices(key, parallel);
+    number_classes(first_of_vertex, parallel)
+}
+
+/// The smallest piece of a per-vertex pass worth handing to another thread.
+const MIN_LEN: usize = 1 << 14;
+
+/// For every vertex, the first vertex (lowest index) with an equal key: the vertices are hashed
+/// into shards by their hash's top bits, and each shard is welded in a table of its own.
+fn first_equal_vertices(key: &Key<'_>, parallel: bool) -> Vec<u32> {
     let vertex_count = key.positions.len();
     let shard_bits = (vertex_count / SHARD_VERTICES)
         .next_power_of_two()
         .trailing_zeros()
         .clamp(1, 12);
     let shard_count = 1usize << shard_bits;
-    const MIN_LEN: usize = 1 << 14;
     // Per vertex: its hash's low half (kept in the table, so that most probes are decided
     // without reading the vertices) and its shard; `NONE` keeps a vertex that equals nothing
     // (NaN) out of every shard.
@@ -225,11 +234,13 @@ fn weld_in_shards(key: &Key<'_>, parallel: bool) -> Weld {
     for (&v, &first) in by_shard.corners.iter().zip(&firsts) {
         first_of_vertex[v as usize] = first;
     }
-    drop(firsts);
-    drop(by_shard);
+    first_of_vertex
+}
 
-    // Classes numbered by first appearance: a prefix count of the vertices that are their own
-    // first, block by block.
+/// Classes numbered by first appearance: a prefix count of the vertices that are their own
+/// first, block by block, then every vertex takes its first's class.
+fn number_classes(first_of_vertex: Vec<u32>, parallel: bool) -> Weld {
+    let vertex_count = first_of_vertex.len();
     let blocks = if parallel {
         rayon::current_num_threads().clamp(1, 64) * 4
     } else {
