@@ -13,11 +13,14 @@ pub const SAMPLE_SIZE: usize = 8;
 /// A count of offending items and the first few of their indices, ascending.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Tally {
+    /// How many items there are.
     pub count: u64,
+    /// The first [`SAMPLE_SIZE`] of their indices (triangles, vertices or corners), ascending.
     pub first: Vec<u32>,
 }
 
 impl Tally {
+    /// Counts one more item, keeping its index while there is room in the sample.
     pub fn add(&mut self, index: u32) {
         self.count += 1;
         if self.first.len() < SAMPLE_SIZE {
@@ -32,6 +35,7 @@ impl Tally {
         self.first.extend(later.first.iter().take(room));
     }
 
+    /// True when nothing was counted.
     pub fn is_empty(&self) -> bool {
         self.count == 0
     }
@@ -57,11 +61,16 @@ pub struct FallbackCounts {
 /// The diagnostics record of one [`super::generate`] call.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Diagnostics {
+    /// The method that made the tangents.
     pub method: Method,
+    /// Triangles in the mesh.
     pub triangles: u64,
-    /// Vertices before and after the split; `vertices_added` is their difference.
+    /// Vertices before the split.
     pub vertices_in: u64,
+    /// Vertices after the split.
     pub vertices_out: u64,
+    /// `vertices_out - vertices_in`: copies made where corners of one vertex needed different
+    /// tangents (or, with generated normals, different normals).
     pub vertices_added: u64,
     /// Set when the mesh had no normals and they were generated.
     pub generated_normals: Option<NormalMode>,
@@ -84,6 +93,7 @@ pub struct Diagnostics {
     pub handedness_flip_vertices: Tally,
     /// Triangles whose three corners do not share one `w`.
     pub mixed_handedness_triangles: Tally,
+    /// Corners given a fallback tangent because the method's own was not valid, by reason.
     pub fallback_tangents: FallbackCounts,
 }
 

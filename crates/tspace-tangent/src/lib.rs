@@ -70,6 +70,8 @@
 //! morph targets can be duplicated the same way), and `indices` gives every corner its output
 //! vertex, triangle for triangle in input order.
 
+#![warn(missing_docs)]
+
 mod acos;
 mod axis;
 pub mod diagnostics;
@@ -195,14 +197,20 @@ pub enum NormalMode {
     Flat,
     /// Angle-weighted vertex normals, averaged across edges whose faces meet at less than
     /// `crease_degrees`; sharper edges stay hard.
-    SmoothByAngle { crease_degrees: f32 },
+    SmoothByAngle {
+        /// Faces whose normals differ by more than this many degrees keep a hard edge.
+        crease_degrees: f32,
+    },
 }
 
 /// Options for [`generate`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Options {
+    /// How tangents are computed ([`Method::MikkTSpace`] by default).
     pub method: Method,
+    /// Where the texture-coordinate origin lies, which decides the sign of `w`.
     pub uv_origin: UvOrigin,
+    /// How [`Method::Fast`] weights each triangle at a vertex (ignored by the other methods).
     pub weighting: Weighting,
     /// Used only when [`MeshInput::normals`] is `None`.
     pub normal_mode: NormalMode,
@@ -213,6 +221,7 @@ pub struct Options {
 /// A triangle list, indexed or not. All per-vertex slices must have the same length.
 #[derive(Clone, Copy, Debug)]
 pub struct MeshInput<'a> {
+    /// Per-vertex positions; their length is the vertex count.
     pub positions: &'a [[f32; 3]],
     /// Per-vertex normals. When absent they are generated (see [`NormalMode`]).
     pub normals: Option<&'a [[f32; 3]]>,
@@ -235,6 +244,7 @@ pub struct Tangents {
     pub split: SplitPlan,
     /// Generated normals, one per *output* vertex of [`Tangents::split`], when the input had none.
     pub normals: Option<Vec<[f32; 3]>>,
+    /// What was found in the mesh and what was done about it.
     pub diagnostics: Diagnostics,
 }
 
@@ -261,22 +271,37 @@ impl Tangents {
 pub enum CoreError {
     /// A per-vertex slice does not have as many entries as `positions`.
     AttributeLength {
+        /// `"normals"` or `"uvs"`.
         attribute: &'static str,
+        /// The number of positions.
         expected: usize,
+        /// The attribute's length.
         found: usize,
     },
     /// The index (or vertex) count is not a multiple of three.
-    NotTriangles { count: usize },
+    NotTriangles {
+        /// The index count (the vertex count when not indexed).
+        count: usize,
+    },
     /// An index points past the end of the vertex arrays.
     IndexOutOfRange {
+        /// Its position in the index slice.
         corner: usize,
+        /// The index itself.
         index: u32,
+        /// The number of vertices.
         vertex_count: usize,
     },
     /// The method needs texture coordinates and none were given.
-    MissingUvs { method: Method },
+    MissingUvs {
+        /// The method asked for.
+        method: Method,
+    },
     /// More vertices or corners than 32-bit indices can address.
-    TooLarge { count: usize },
+    TooLarge {
+        /// The vertex or corner count.
+        count: usize,
+    },
 }
 
 impl fmt::Display for CoreError {
