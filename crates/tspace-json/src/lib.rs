@@ -26,6 +26,42 @@
 //!
 //! Every container node consumes at least two bytes and every scalar at least one, so the tree's
 //! size is bounded by the input's length.
+//!
+//! # Example
+//!
+//! Change one member of a glTF document; every other byte, odd number spellings and layout
+//! included, comes back unchanged.
+//!
+//! ```
+//! use tspace_json::{Document, escape_str};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let text = br#"{
+//!   "asset": {"version": "2.0", "generator": "an exporter"},
+//!   "accessors": [ {"count": 3, "max": [1.0, 1e0, 0.10]} ],
+//!   "extensionsUsed": ["EXT_unknown_to_tspace"]
+//! }"#;
+//! let doc = Document::parse(text)?;
+//! let asset = doc.root().get("asset").unwrap();
+//! assert_eq!(asset.get("version").and_then(|v| v.as_str()), Some("2.0"));
+//!
+//! let mut editor = doc.editor();
+//! editor.set_member(asset, "generator", escape_str("tspace"))?;
+//! let out = editor.render()?;
+//!
+//! // Only the generator's value was rewritten.
+//! let old = asset.get("generator").unwrap().span.clone();
+//! let new = "\"tspace\"";
+//! let source = doc.source();
+//! assert_eq!(&out[..old.start], &source[..old.start]);
+//! assert_eq!(&out[old.start..old.start + new.len()], new);
+//! assert_eq!(&out[old.start + new.len()..], &source[old.end..]);
+//! assert!(out.contains("[1.0, 1e0, 0.10]"));
+//! # Ok(())
+//! # }
+//! ```
+
+#![warn(missing_docs)]
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -42,27 +78,35 @@ const BOM: &[u8] = b"\xEF\xBB\xBF";
 pub struct Node {
     /// Byte range of the value's text in the source, from its first to its last byte.
     pub span: Range<usize>,
+    /// What the value is; arrays and objects hold their children here.
     pub kind: Kind,
 }
 
+/// The type of a JSON value, with its contents.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Kind {
+    /// `null`.
     Null,
+    /// `true` or `false`.
     Bool(bool),
+    /// A number, kept as spelled in the source.
     Number(Number),
     /// The decoded string (escapes resolved).
     String(String),
+    /// Elements in source order.
     Array(Vec<Node>),
     /// Members in source order. Keys are unique (the parser rejects duplicates).
     Object(Vec<Member>),
 }
 
+/// One `"key": value` pair of an object.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Member {
     /// The decoded key.
     pub key: String,
     /// Byte range of the key's text, quotes included.
     pub key_span: Range<usize>,
+    /// The member's value; its span covers the value only, not the key or colon.
     pub value: Node,
 }
 
@@ -138,6 +182,8 @@ impl Node {
         self.member(key).map(|m| &m.value)
     }
 
+    /// Member `key` with its key span, if this is an object that has it. Like [`Node::get`],
+    /// for when the key's position matters too.
     pub fn member(&self, key: &str) -> Option<&Member> {
         self.as_object()?.iter().find(|m| m.key == key)
     }
@@ -147,6 +193,7 @@ impl Node {
         self.as_array()?.get(i)
     }
 
+    /// The members in source order, if this is an object.
     pub fn as_object(&self) -> Option<&[Member]> {
         match &self.kind {
             Kind::Object(members) => Some(members),
@@ -154,6 +201,7 @@ impl Node {
         }
     }
 
+    /// The elements in source order, if this is an array.
     pub fn as_array(&self) -> Option<&[Node]> {
         match &self.kind {
             Kind::Array(elements) => Some(elements),
@@ -161,6 +209,7 @@ impl Node {
         }
     }
 
+    /// The decoded string (escapes resolved, lone surrogates as U+FFFD), if this is a string.
     pub fn as_str(&self) -> Option<&str> {
         match &self.kind {
             Kind::String(s) => Some(s),
@@ -168,6 +217,7 @@ impl Node {
         }
     }
 
+    /// The value, if this is `true` or `false`.
     pub fn as_bool(&self) -> Option<bool> {
         match self.kind {
             Kind::Bool(b) => Some(b),
@@ -175,6 +225,7 @@ impl Node {
         }
     }
 
+    /// The number as spelled, if this is a number.
     pub fn as_number(&self) -> Option<&Number> {
         match &self.kind {
             Kind::Number(n) => Some(n),
@@ -182,18 +233,24 @@ impl Node {
         }
     }
 
+    /// [`Number::as_f64`] of this number; `None` if this is not a number.
     pub fn as_f64(&self) -> Option<f64> {
         self.as_number()?.as_f64()
     }
 
+    /// [`Number::as_u64`] of this number: `None` if this is not a number, or not an integer
+    /// that fits.
     pub fn as_u64(&self) -> Option<u64> {
         self.as_number()?.as_u64()
     }
 
+    /// [`Number::as_i64`] of this number: `None` if this is not a number, or not an integer
+    /// that fits.
     pub fn as_i64(&self) -> Option<i64> {
         self.as_number()?.as_i64()
     }
 
+    /// Whether this is `null`. (An absent member is `None` from [`Node::get`], not null.)
     pub fn is_null(&self) -> bool {
         matches!(self.kind, Kind::Null)
     }
@@ -246,6 +303,8 @@ impl<'a> Document<'a> {
         })
     }
 
+    /// The top-level value. Its span excludes the surrounding whitespace and any byte order
+    /// mark.
     pub fn root(&self) -> &Node {
         &self.root
     }
@@ -265,6 +324,7 @@ impl<'a> Document<'a> {
         self.source.get(node.span.clone()).unwrap_or("")
     }
 
+    /// A new editor with no edits for this document (the same as [`Editor::new`]).
     pub fn editor(&self) -> Editor<'_, 'a> {
         Editor::new(self)
     }
@@ -273,44 +333,67 @@ impl<'a> Document<'a> {
 /// Why a text is not JSON, and where.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ParseError {
-    /// Byte offset into the input.
+    /// Byte offset into the input (byte order mark included) where the problem is.
     pub offset: usize,
-    /// 1-based line and column (in characters) of `offset`, for people.
+    /// 1-based line of `offset`, for people; lines end at `\n`.
     pub line: usize,
+    /// 1-based column of `offset` within its line, counted in characters, not bytes.
     pub column: usize,
+    /// What is wrong.
     pub kind: ParseErrorKind,
 }
 
+/// The kinds of [`ParseError`]. Each variant says where its error's `offset` points.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ParseErrorKind {
+    /// The input is not UTF-8. It is checked before any JSON, so this wins over syntax errors;
+    /// `offset` is the first byte of the invalid sequence.
     InvalidUtf8,
-    /// The text ended inside a value (or held no value at all).
+    /// The text ended inside a value (or held no value at all); `offset` is the input's length.
     UnexpectedEnd,
-    /// `expected` says what would have been valid here.
+    /// A character that cannot appear here; `offset` is at it.
     Unexpected {
+        /// The offending character.
         found: char,
+        /// What would have been valid here, as a phrase for messages (`"a value"`,
+        /// `"',' or ']'"`).
         expected: &'static str,
     },
+    /// A comma directly before `]` or `}`; `offset` is at the closing bracket.
     TrailingComma,
-    /// A raw byte below 0x20 inside a string; JSON requires it escaped.
+    /// A raw byte below 0x20 inside a string; JSON requires it escaped. `offset` is at it.
     ControlCharacter {
+        /// The raw byte, 0x00 to 0x1F.
         byte: u8,
     },
+    /// A backslash followed by something that starts no JSON escape; `offset` is at the
+    /// backslash.
     InvalidEscape {
+        /// The character after the backslash.
         found: char,
     },
+    /// `\u` not followed by four hexadecimal digits, including when the text ends first;
+    /// `offset` is at that escape's backslash.
     InvalidUnicodeEscape,
+    /// A number with a superfluous leading zero (`01`, `-00`); `offset` is at the zero.
     LeadingZero,
-    /// A number missing its digits: `-`, `1.`, `1e`.
+    /// A number missing its digits: `-`, `1.`, `1e`. `offset` is where a digit was expected.
     MissingDigits,
+    /// Arrays and objects nest deeper than allowed; `offset` is at the bracket that opens one
+    /// level too many.
     TooDeep {
+        /// The maximum nesting depth, [`MAX_DEPTH`].
         limit: usize,
     },
+    /// A key appears twice in one object. `offset` is at the earliest key in the object that
+    /// repeats an earlier one.
     DuplicateKey {
+        /// The decoded key.
         key: String,
     },
-    /// Something other than whitespace after the top-level value.
+    /// Something other than whitespace after the top-level value; `offset` is at it.
     TrailingCharacters {
+        /// The first such character.
         found: char,
     },
 }
@@ -760,20 +843,43 @@ pub fn f32_text(v: f32) -> Option<String> {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum EditError {
     /// The edit needs an object and the node is something else.
-    NotAnObject { span: Range<usize> },
+    NotAnObject {
+        /// The node's span in the source.
+        span: Range<usize>,
+    },
     /// The edit needs an array and the node (or the member's value) is something else.
-    NotAnArray { span: Range<usize> },
-    /// Adding the member would duplicate a key.
-    MemberExists { key: String },
-    /// The new text is not one JSON value.
-    InvalidText { text: String, error: ParseError },
+    NotAnArray {
+        /// The span of the node that is not an array (for
+        /// [`Editor::push_to_array_member`], the member's value).
+        span: Range<usize>,
+    },
+    /// Adding the member would duplicate a key, or [`Editor::push_to_array_member`] names a
+    /// member that this editor added with [`Editor::insert_member`] or [`Editor::set_member`].
+    MemberExists {
+        /// The key as the caller passed it.
+        key: String,
+    },
+    /// The new text is not one JSON value (or starts with a byte order mark).
+    InvalidText {
+        /// The rejected text, in full.
+        text: String,
+        /// Why it does not parse; its offsets are into `text`.
+        error: ParseError,
+    },
     /// Two edits change overlapping text (for example a value and a member inside it).
+    /// Reported by [`Editor::render`], not when the edits are made.
     Overlap {
+        /// Byte range of the original text that one edit changes (an insertion is the empty
+        /// range at its position). It starts no later than `second`.
         first: Range<usize>,
+        /// Byte range of the original text that the other edit changes.
         second: Range<usize>,
     },
     /// An edit refers to text outside the document: its node came from another document.
-    ForeignNode { span: Range<usize> },
+    ForeignNode {
+        /// The span the edit named, which is not within this document's JSON text.
+        span: Range<usize>,
+    },
 }
 
 impl fmt::Display for EditError {
@@ -849,6 +955,8 @@ struct ArrayEdit {
 }
 
 impl<'d, 'a> Editor<'d, 'a> {
+    /// An editor for `doc` with no edits yet; rendering it gives `doc`'s text without any byte
+    /// order mark.
     pub fn new(doc: &'d Document<'a>) -> Self {
         Editor {
             doc,

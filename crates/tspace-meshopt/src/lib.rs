@@ -74,6 +74,36 @@
 //!
 //! Structural rules that need the rest of the document (the parent view's `byteLength` equal to
 //! `count * byteStride`, a matching parent `byteStride`, fallback buffers) are the caller's.
+//!
+//! # Example
+//!
+//! The index sequence 0, 1, 2, 2, 1, 3 as an `INDICES` stream: the header, then one LEB128
+//! byte per index holding `zigzag(delta) << 1 | baseline` (here always baseline 0, starting
+//! at 0), then the 4-byte tail.
+//!
+//! ```
+//! use tspace_meshopt::{Compressed, Filter, Mode, decode};
+//!
+//! # fn main() -> Result<(), tspace_meshopt::MeshoptError> {
+//! let data = [0xd1, 0, 4, 4, 0, 2, 8, 0, 0, 0, 0];
+//! let view = Compressed {
+//!     data: &data,
+//!     count: 6,
+//!     byte_stride: 2,
+//!     mode: Mode::from_name("INDICES")?,
+//!     filter: Filter::None,
+//! };
+//! let bytes = decode(&view, 1 << 20)?;
+//! let indices: Vec<u16> = bytes
+//!     .chunks_exact(2)
+//!     .map(|b| u16::from_le_bytes([b[0], b[1]]))
+//!     .collect();
+//! assert_eq!(indices, [0, 1, 2, 2, 1, 3]);
+//! # Ok(())
+//! # }
+//! ```
+
+#![warn(missing_docs)]
 
 use std::fmt;
 
@@ -208,7 +238,10 @@ pub struct Compressed<'a> {
     pub count: usize,
     /// Size of one element in bytes (`byteStride`).
     pub byte_stride: usize,
+    /// Which codec the data is (`mode`).
     pub mode: Mode,
+    /// What to apply after decoding (`filter`; [`Filter::None`] when the JSON has none). Only
+    /// [`Mode::Attributes`] views may have another.
     pub filter: Filter,
 }
 
@@ -219,38 +252,92 @@ pub enum MeshoptError {
     UnknownMode(String),
     /// The JSON `filter` is none of the five (the string, cut to 64 characters).
     UnknownFilter(String),
-    /// `byteStride` breaks the mode's rule.
-    InvalidStride { mode: Mode, byte_stride: usize },
+    /// `byteStride` breaks the mode's rule: a multiple of 4 from 4 to 256 for `ATTRIBUTES`, 2
+    /// or 4 for the index modes.
+    InvalidStride {
+        /// The view's mode.
+        mode: Mode,
+        /// The rejected `byteStride`.
+        byte_stride: usize,
+    },
     /// `TRIANGLES` with a count that is not a multiple of 3.
-    TriangleCount { count: usize },
+    TriangleCount {
+        /// The view's `count`.
+        count: usize,
+    },
     /// A filter other than `NONE` on an index mode.
-    FilterOnIndices { mode: Mode, filter: Filter },
-    /// `byteStride` does not suit the filter.
-    FilterStride { filter: Filter, byte_stride: usize },
+    FilterOnIndices {
+        /// The view's mode, `TRIANGLES` or `INDICES`.
+        mode: Mode,
+        /// The filter it was given.
+        filter: Filter,
+    },
+    /// `byteStride` does not suit the filter (`OCTAHEDRAL` and `COLOR` take 4 or 8,
+    /// `QUATERNION` 8, `EXPONENTIAL` a multiple of 4).
+    FilterStride {
+        /// The view's filter.
+        filter: Filter,
+        /// The view's `byteStride`.
+        byte_stride: usize,
+    },
     /// `count * byteStride` overflows or exceeds the caller's limit.
     OutputTooLarge {
+        /// The view's `count`.
         count: usize,
+        /// The view's `byteStride`.
         byte_stride: usize,
+        /// The `max_output_bytes` passed to [`decode`].
         limit: usize,
     },
     /// The data is shorter than any encoding of `count` elements can be.
     InputTooShort {
+        /// The view's mode.
         mode: Mode,
+        /// Length of the compressed data, in bytes.
         len: usize,
+        /// Length of the shortest possible encoding, in bytes (`usize::MAX` if that
+        /// overflows).
         needed: usize,
+        /// The view's `count`.
         count: usize,
+        /// The view's `byteStride`.
         byte_stride: usize,
     },
     /// The first byte is not a header of the view's mode.
-    BadHeader { mode: Mode, byte: u8 },
+    BadHeader {
+        /// The view's mode.
+        mode: Mode,
+        /// The data's first byte (which may be another mode's header; the message says so).
+        byte: u8,
+    },
     /// A header of the right mode but a bitstream version this decoder does not read.
-    UnsupportedVersion { mode: Mode, byte: u8 },
+    UnsupportedVersion {
+        /// The view's mode.
+        mode: Mode,
+        /// The header byte; its low nibble is the version.
+        byte: u8,
+    },
     /// The data ran out before every element was decoded.
-    Truncated { mode: Mode },
+    Truncated {
+        /// The view's mode.
+        mode: Mode,
+    },
     /// Bytes were left between the decoded data and the tail.
-    TrailingData { mode: Mode, extra: usize },
+    TrailingData {
+        /// The view's mode.
+        mode: Mode,
+        /// How many bytes were left unread.
+        extra: usize,
+    },
     /// A version-1 vertex stream declares an invalid channel mode for bytes `4 * channel..`.
-    InvalidChannel { channel: usize, byte: u8 },
+    InvalidChannel {
+        /// Index of the 4-byte channel within an element (bytes `4 * channel` to
+        /// `4 * channel + 3`).
+        channel: usize,
+        /// The channel's control byte from the stream's tail: valid ones are 0, 1 and
+        /// `r << 4 | 2`.
+        byte: u8,
+    },
     /// The 16-byte lookup table at the end of a `TRIANGLES` stream breaks its rules.
     InvalidCodeTable,
 }
