@@ -184,51 +184,19 @@ pub fn run(contender: Contender, mesh: &BenchMesh) -> Result<Output, String> {
     }
 }
 
-/// bevy_mikktspace through its `Geometry` trait, the way a caller with indexed arrays uses it.
-/// Corners it leaves without a tangent stay zero.
+/// bevy_mikktspace through its `Geometry` trait, the way a caller with indexed arrays uses it
+/// (the test kit's oracle). Corners it leaves without a tangent stay zero.
 fn bevy_tangents(mesh: &BenchMesh) -> Result<Vec<[f32; 4]>, String> {
-    struct Geometry<'a> {
-        mesh: &'a BenchMesh,
-        out: Vec<[f32; 4]>,
-    }
-    impl Geometry<'_> {
-        fn vertex(&self, face: usize, vert: usize) -> usize {
-            self.mesh.indices[face * 3 + vert] as usize
-        }
-    }
-    impl bevy_mikktspace::Geometry for Geometry<'_> {
-        fn num_faces(&self) -> usize {
-            self.mesh.indices.len() / 3
-        }
-        fn num_vertices_of_face(&self, _face: usize) -> usize {
-            3
-        }
-        fn position(&self, face: usize, vert: usize) -> [f32; 3] {
-            self.mesh.positions[self.vertex(face, vert)]
-        }
-        fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
-            self.mesh.normals[self.vertex(face, vert)]
-        }
-        fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
-            self.mesh.uvs[self.vertex(face, vert)]
-        }
-        fn set_tangent(
-            &mut self,
-            tangent: Option<bevy_mikktspace::TangentSpace>,
-            face: usize,
-            vert: usize,
-        ) {
-            if let Some(t) = tangent {
-                self.out[face * 3 + vert] = t.tangent_encoded();
-            }
-        }
-    }
-    let mut geometry = Geometry {
-        mesh,
-        out: vec![[0.0; 4]; mesh.indices.len()],
-    };
-    bevy_mikktspace::generate_tangents(&mut geometry).map_err(|e| format!("{e:?}"))?;
-    Ok(geometry.out)
+    let tangents = tspace_testkit::reference_tangents(
+        &mesh.positions,
+        &mesh.normals,
+        &mesh.uvs,
+        &mesh.indices,
+    );
+    Ok(tangents
+        .into_iter()
+        .map(|t| t.unwrap_or([0.0; 4]))
+        .collect())
 }
 
 /// Angular error statistics over corners, in degrees.
