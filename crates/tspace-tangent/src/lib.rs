@@ -91,6 +91,7 @@ pub use diagnostics::{Diagnostics, FallbackCounts, Tally};
 pub use split::SplitPlan;
 
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::fmt;
 
 /// How tangents are computed.
@@ -342,56 +343,132 @@ impl std::error::Error for CoreError {}
 
 /// Computes tangents for one triangle list.
 pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, CoreError> {
-    let vertex_count = input.positions.len();
     check_lengths(input, options.parallel)?;
     if options.method != Method::Axis && input.uvs.is_none() {
         return Err(CoreError::MissingUvs {
             method: options.method,
         });
     }
+    let prepared = Prepared::new(input, options.normal_mode);
+    let mesh = prepared.mesh();
+    let (mut diagnostics, mut split) = run_method(&mesh, options);
+    let normals = prepared.express_in_input_vertices(&mut split, &mut diagnostics);
+    Ok(Tangents {
+        split,
+        normals,
+        diagnostics,
+    })
+}
 
-    // Generated normals come with their own vertex split (flat normals give every triangle its
-    // own corners), so the tangent method below always sees an indexed mesh with normals.
-    let generated = match input.normals {
-        Some(_) => None,
-        None => Some(normals::generate(input, options.normal_mode)),
-    };
-    let owned_positions: Vec<[f32; 3]>;
-    let owned_uvs: Option<Vec<[f32; 2]>>;
-    let owned_indices: Vec<u32>;
-    let mesh = match (&generated, input.normals) {
-        (None, Some(normals)) => {
-            let indices: &[u32] = match input.indices {
-                Some(indices) => indices,
-                None => {
-                    owned_indices = (0..vertex_count as u32).collect();
-                    &owned_indices
+/// The mesh every method works on: indexed, with normals. Generated normals come with their
+/// own vertex split (flat normals give every triangle its own corners), so positions and UVs
+/// are copied into that split's vertices.
+enum Prepared<'a> {
+    Given {
+        input: &'a MeshInput<'a>,
+        normals: &'a [[f32; 3]],
+        /// `0, 1, 2, …` when the input is not indexed.
+        indices: Cow<'a, [u32]>,
+    },
+    Generated {
+        vertices_in: usize,
+        generated: normals::GeneratedNormals,
+        positions: Vec<[f32; 3]>,
+        uvs: Option<Vec<[f32; 2]>>,
+        normal_mode: NormalMode,
+    },
+}
+
+impl<'a> Prepared<'a> {
+    fn new(input: &'a MeshInput<'a>, normal_mode: NormalMode) -> Self {
+        match input.normals {
+            Some(normals) => Prepared::Given {
+                input,
+                normals,
+                indices: match input.indices {
+                    Some(indices) => Cow::Borrowed(indices),
+                    None => Cow::Owned((0..input.positions.len() as u32).collect()),
+                },
+            },
+            None => {
+                let generated = normals::generate(input, normal_mode);
+                let remap = &generated.split.source_vertex;
+                let positions = remap.iter().map(|&v| input.positions[v as usize]).collect();
+                let uvs = input
+                    .uvs
+                    .map(|uvs| remap.iter().map(|&v| uvs[v as usize]).collect());
+                Prepared::Generated {
+                    vertices_in: input.positions.len(),
+                    generated,
+                    positions,
+                    uvs,
+                    normal_mode,
                 }
-            };
-            math::Mesh {
+            }
+        }
+    }
+
+    fn mesh(&self) -> math::Mesh<'_> {
+        match self {
+            Prepared::Given {
+                input,
+                normals,
+                indices,
+            } => math::Mesh {
                 positions: input.positions,
                 normals,
                 uvs: input.uvs,
                 indices,
-            }
-        }
-        (Some(generated), _) => {
-            let remap = &generated.split.source_vertex;
-            owned_positions = remap.iter().map(|&v| input.positions[v as usize]).collect();
-            owned_uvs = input
-                .uvs
-                .map(|uvs| remap.iter().map(|&v| uvs[v as usize]).collect());
-            math::Mesh {
-                positions: &owned_positions,
+            },
+            Prepared::Generated {
+                generated,
+                positions,
+                uvs,
+                ..
+            } => math::Mesh {
+                positions,
                 normals: &generated.normals,
-                uvs: owned_uvs.as_deref(),
+                uvs: uvs.as_deref(),
                 indices: &generated.split.indices,
-            }
+            },
         }
-        (None, None) => unreachable!("normals are generated whenever the input has none"),
-    };
+    }
 
-    let (mut diagnostics, non_finite_vertex) = diagnostics::analyze_vertices(&mesh, options);
+    /// With generated normals, the plan so far speaks of the normals' split: re-expressed in
+    /// terms of the caller's vertices, with the normals handed back one per output vertex.
+    fn express_in_input_vertices(
+        &self,
+        split: &mut SplitPlan,
+        diagnostics: &mut Diagnostics,
+    ) -> Option<Vec<[f32; 3]>> {
+        let Prepared::Generated {
+            vertices_in,
+            generated,
+            normal_mode,
+            ..
+        } = self
+        else {
+            return None;
+        };
+        let normals = split
+            .source_vertex
+            .iter()
+            .map(|&v| generated.normals[v as usize])
+            .collect();
+        for v in &mut split.source_vertex {
+            *v = generated.split.source_vertex[*v as usize];
+        }
+        diagnostics.generated_normals = Some(*normal_mode);
+        diagnostics.vertices_in = *vertices_in as u64;
+        diagnostics.vertices_added = split.source_vertex.len().saturating_sub(*vertices_in) as u64;
+        Some(normals)
+    }
+}
+
+/// The vertex checks, then the chosen method (which checks the triangles in its own pass, but
+/// for axis, which needs one of its own); the diagnostics and the split plan it makes.
+fn run_method(mesh: &math::Mesh<'_>, options: &Options) -> (Diagnostics, SplitPlan) {
+    let (mut diagnostics, non_finite_vertex) = diagnostics::analyze_vertices(mesh, options);
     let triangle_check = diagnostics::TriangleCheck {
         uv_origin: options.uv_origin,
         has_uvs: mesh.uvs.is_some(),
@@ -399,25 +476,16 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     };
     // Axis tangents have no UV handedness to convert.
     let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
-    // MikkTSpace and fast check the triangles in their own triangle pass; axis needs a pass of
-    // its own.
-    if options.method == Method::Axis {
-        diagnostics.set_triangles(diagnostics::analyze_triangles(
-            &mesh,
-            &triangle_check,
-            options.parallel,
-        ));
-    }
-    let mut split = match options.method {
+    let split = match options.method {
         Method::MikkTSpace => mikktspace::generate(
-            &mesh,
+            mesh,
             options.parallel,
             flip_w,
             &triangle_check,
             &mut diagnostics,
         ),
         Method::Fast => fast::generate(
-            &mesh,
+            mesh,
             options.weighting,
             options.parallel,
             flip_w,
@@ -425,8 +493,13 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
             &mut diagnostics,
         ),
         Method::Axis => {
-            let mut corners = axis::generate(&mesh);
-            diagnostics.fallback_tangents = fallback::repair(&mesh, &mut corners, options.parallel);
+            diagnostics.set_triangles(diagnostics::analyze_triangles(
+                mesh,
+                &triangle_check,
+                options.parallel,
+            ));
+            let mut corners = axis::generate(mesh);
+            diagnostics.fallback_tangents = fallback::repair(mesh, &mut corners, options.parallel);
             split::plan(
                 mesh.indices,
                 mesh.vertex_count(),
@@ -436,29 +509,7 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
             )
         }
     };
-    let mut out_normals = None;
-    if let Some(generated) = &generated {
-        // Express the plan in terms of the caller's vertices, and hand back the normals.
-        out_normals = Some(
-            split
-                .source_vertex
-                .iter()
-                .map(|&v| generated.normals[v as usize])
-                .collect(),
-        );
-        for v in &mut split.source_vertex {
-            *v = generated.split.source_vertex[*v as usize];
-        }
-        diagnostics.generated_normals = Some(options.normal_mode);
-        diagnostics.vertices_in = vertex_count as u64;
-        diagnostics.vertices_added = split.source_vertex.len().saturating_sub(vertex_count) as u64;
-    }
-
-    Ok(Tangents {
-        split,
-        normals: out_normals,
-        diagnostics,
-    })
+    (diagnostics, split)
 }
 
 fn check_lengths(input: &MeshInput<'_>, parallel: bool) -> Result<(), CoreError> {
