@@ -225,120 +225,170 @@ fn accessor_index(node: Option<&Node>) -> Option<usize> {
         .and_then(|n| usize::try_from(n).ok())
 }
 
+/// The array member `name` of `node`; a missing or malformed one holds nothing to plan.
+fn array<'a>(node: &'a Node, name: &str) -> &'a [Node] {
+    node.get(name).and_then(Node::as_array).unwrap_or(&[])
+}
+
+fn attribute(primitive: &Node, name: &str) -> Option<usize> {
+    accessor_index(primitive.get("attributes").and_then(|a| a.get(name)))
+}
+
+fn topology(mode: u64) -> Option<Topology> {
+    match mode {
+        4 => Some(Topology::Triangles),
+        5 => Some(Topology::Strip),
+        6 => Some(Topology::Fan),
+        _ => None,
+    }
+}
+
+/// What the primitive's material says about tangents. A material variant
+/// (KHR_materials_variants) that uses a frame counts as well, since any variant may be shown.
+fn frame_use(primitive: &Node, material: Option<usize>, materials: &[Node]) -> MaterialUse {
+    let usage = material_use(material.and_then(|m| materials.get(m)));
+    if usage.uses.is_some() {
+        return usage;
+    }
+    let variants = primitive
+        .get("extensions")
+        .and_then(|e| e.get("KHR_materials_variants"))
+        .map_or(&[][..], |v| array(v, "mappings"));
+    variants
+        .iter()
+        .map(|mapping| {
+            material_use(accessor_index(mapping.get("material")).and_then(|m| materials.get(m)))
+        })
+        .find(|candidate| candidate.uses.is_some())
+        .unwrap_or(usage)
+}
+
+/// What the decision reads from one primitive.
+struct Facts {
+    mode: u64,
+    topology: Option<Topology>,
+    position: Option<usize>,
+    /// The accessor of the texture-coordinate set the frame follows.
+    texcoord: Option<usize>,
+    material: Option<usize>,
+    had_tangents: bool,
+}
+
+fn decide(facts: &Facts, usage: &MaterialUse, options: &PlanOptions) -> Action {
+    let wants_frame = usage.uses.is_some()
+        || options.all
+        || (facts.material.is_none() && options.no_material_means_tangents);
+    let keeps_tangents = facts.had_tangents && !options.overwrite;
+    match (facts.topology, facts.position) {
+        (None, _) => Action::Skip(SkipReason::NotTriangles { mode: facts.mode }),
+        (_, None) => Action::Skip(SkipReason::NoPositions),
+        _ if !wants_frame => {
+            if keeps_tangents {
+                Action::Skip(SkipReason::HasTangents)
+            } else if facts.material.is_none() {
+                Action::Skip(SkipReason::NoMaterial)
+            } else {
+                Action::Skip(SkipReason::NoNormalMap)
+            }
+        }
+        // Kept tangents are audited against MikkTSpace, which needs the coordinates they follow.
+        _ if keeps_tangents => match facts.texcoord {
+            Some(_) => Action::Audit,
+            None => Action::Skip(SkipReason::HasTangents),
+        },
+        _ if facts.texcoord.is_none() && !options.axis => Action::Skip(SkipReason::NoTexcoords {
+            set: usage.set,
+            normal_map: usage.uses.is_some(),
+        }),
+        _ => Action::Generate,
+    }
+}
+
+/// Per morph target: its POSITION and NORMAL accessors.
+fn morph_targets(primitive: &Node) -> Vec<(Option<usize>, Option<usize>)> {
+    array(primitive, "targets")
+        .iter()
+        .map(|t| {
+            (
+                accessor_index(t.get("POSITION")),
+                accessor_index(t.get("NORMAL")),
+            )
+        })
+        .collect()
+}
+
+fn geometry_key(
+    primitive: &Node,
+    facts: &Facts,
+    action: &Action,
+    options: &PlanOptions,
+) -> Option<GeometryKey> {
+    let (Action::Generate | Action::Audit, Some(topology), Some(position)) =
+        (action, facts.topology, facts.position)
+    else {
+        return None;
+    };
+    // Morph-target deltas are only written beside generated tangents; an audit compares the
+    // base mesh alone.
+    let targets = match action {
+        Action::Generate => morph_targets(primitive),
+        _ => Vec::new(),
+    };
+    Some(GeometryKey {
+        topology,
+        indices: accessor_index(primitive.get("indices")),
+        position,
+        normal: attribute(primitive, "NORMAL"),
+        texcoord: if options.axis { None } else { facts.texcoord },
+        targets,
+    })
+}
+
+fn plan_primitive(
+    mesh: usize,
+    mesh_name: &Option<String>,
+    index: usize,
+    primitive: &Node,
+    materials: &[Node],
+    options: &PlanOptions,
+) -> PrimitivePlan {
+    let material = accessor_index(primitive.get("material"));
+    let usage = frame_use(primitive, material, materials);
+    let mode = primitive.get("mode").and_then(Node::as_u64).unwrap_or(4);
+    let facts = Facts {
+        mode,
+        topology: topology(mode),
+        position: attribute(primitive, "POSITION"),
+        texcoord: attribute(primitive, &format!("TEXCOORD_{}", usage.set)),
+        material,
+        had_tangents: attribute(primitive, "TANGENT").is_some(),
+    };
+    let action = decide(&facts, &usage, options);
+    let key = geometry_key(primitive, &facts, &action, options);
+    PrimitivePlan {
+        mesh,
+        primitive: index,
+        mesh_name: mesh_name.clone(),
+        material,
+        texcoord_set: usage.set,
+        uses: usage.uses,
+        had_tangents: facts.had_tangents,
+        action,
+        key,
+        notes: usage.notes,
+    }
+}
+
 /// Decides every primitive of the document.
 pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
-    let materials = root
-        .get("materials")
-        .and_then(Node::as_array)
-        .unwrap_or(&[]);
-    let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
+    let materials = array(root, "materials");
     let mut plans = Vec::new();
-    for (mesh_index, mesh) in meshes.iter().enumerate() {
+    for (mesh_index, mesh) in array(root, "meshes").iter().enumerate() {
         let mesh_name = mesh.get("name").and_then(Node::as_str).map(str::to_owned);
-        let primitives = mesh
-            .get("primitives")
-            .and_then(Node::as_array)
-            .unwrap_or(&[]);
-        for (primitive_index, primitive) in primitives.iter().enumerate() {
-            let material = accessor_index(primitive.get("material"));
-            // A material variant (KHR_materials_variants) that uses a frame counts as well.
-            let mut usage = material_use(material.and_then(|m| materials.get(m)));
-            if usage.uses.is_none() {
-                let variants = primitive
-                    .get("extensions")
-                    .and_then(|e| e.get("KHR_materials_variants"))
-                    .and_then(|v| v.get("mappings"))
-                    .and_then(Node::as_array)
-                    .unwrap_or(&[]);
-                for mapping in variants {
-                    let variant =
-                        accessor_index(mapping.get("material")).and_then(|m| materials.get(m));
-                    let candidate = material_use(variant);
-                    if candidate.uses.is_some() {
-                        usage = candidate;
-                        break;
-                    }
-                }
-            }
-            let attributes = primitive.get("attributes");
-            let attribute = |name: &str| accessor_index(attributes.and_then(|a| a.get(name)));
-            let had_tangents = attribute("TANGENT").is_some();
-            let mode = primitive.get("mode").and_then(Node::as_u64).unwrap_or(4);
-            let topology = match mode {
-                4 => Some(Topology::Triangles),
-                5 => Some(Topology::Strip),
-                6 => Some(Topology::Fan),
-                _ => None,
-            };
-            let texcoord = attribute(&format!("TEXCOORD_{}", usage.set));
-            let position = attribute("POSITION");
-
-            let action = match (topology, position) {
-                (None, _) => Action::Skip(SkipReason::NotTriangles { mode }),
-                (_, None) => Action::Skip(SkipReason::NoPositions),
-                _ if usage.uses.is_none()
-                    && !options.all
-                    && !(material.is_none() && options.no_material_means_tangents) =>
-                {
-                    if had_tangents && !options.overwrite {
-                        Action::Skip(SkipReason::HasTangents)
-                    } else if material.is_none() {
-                        Action::Skip(SkipReason::NoMaterial)
-                    } else {
-                        Action::Skip(SkipReason::NoNormalMap)
-                    }
-                }
-                _ if had_tangents && !options.overwrite => match texcoord {
-                    Some(_) => Action::Audit,
-                    None => Action::Skip(SkipReason::HasTangents),
-                },
-                _ if texcoord.is_none() && !options.axis => Action::Skip(SkipReason::NoTexcoords {
-                    set: usage.set,
-                    normal_map: usage.uses.is_some(),
-                }),
-                _ => Action::Generate,
-            };
-            let key = match (&action, topology, position) {
-                (Action::Generate | Action::Audit, Some(topology), Some(position)) => {
-                    let targets = primitive
-                        .get("targets")
-                        .and_then(Node::as_array)
-                        .unwrap_or(&[])
-                        .iter()
-                        .map(|t| {
-                            (
-                                accessor_index(t.get("POSITION")),
-                                accessor_index(t.get("NORMAL")),
-                            )
-                        })
-                        .collect();
-                    Some(GeometryKey {
-                        topology,
-                        indices: accessor_index(primitive.get("indices")),
-                        position,
-                        normal: attribute("NORMAL"),
-                        texcoord: if options.axis { None } else { texcoord },
-                        targets: if action == Action::Generate {
-                            targets
-                        } else {
-                            Vec::new()
-                        },
-                    })
-                }
-                _ => None,
-            };
-            plans.push(PrimitivePlan {
-                mesh: mesh_index,
-                primitive: primitive_index,
-                mesh_name: mesh_name.clone(),
-                material,
-                texcoord_set: usage.set,
-                uses: usage.uses,
-                had_tangents,
-                action,
-                key,
-                notes: usage.notes,
-            });
+        for (index, primitive) in array(mesh, "primitives").iter().enumerate() {
+            plans.push(plan_primitive(
+                mesh_index, &mesh_name, index, primitive, materials, options,
+            ));
         }
     }
     plans
