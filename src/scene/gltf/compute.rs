@@ -7,7 +7,7 @@ use super::plan::{GeometryKey, Topology};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::{Audit, TallyReport};
 use tspace_json::Node;
-use tspace_tangent::{self as tangent, CoreError, MeshInput, Options, Tally, Tangents};
+use tspace_tangent::{self as tangent, CoreError, MeshInput, Options, SplitPlan, Tally, Tangents};
 
 /// Limits on the geometry one scene may hold.
 #[derive(Clone, Copy, Debug)]
@@ -103,14 +103,19 @@ fn read_normals(
     let mut normals =
         accessor::read_floats::<3>(&described, limits.max_vertices).map_err(accessor_error)?;
     if described.component_type != ComponentType::F32 {
-        for n in &mut normals {
-            let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            if length > 0.0 {
-                *n = [n[0] / length, n[1] / length, n[2] / length];
-            }
-        }
+        normalize(&mut normals);
     }
     Ok(normals)
+}
+
+/// Scales every non-zero vector to unit length; a zero one stays as it is.
+fn normalize(vectors: &mut [[f32; 3]]) {
+    for v in vectors {
+        let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if length > 0.0 {
+            *v = [v[0] / length, v[1] / length, v[2] / length];
+        }
+    }
 }
 
 /// Turns strips and fans into triangle lists (glTF 2.0 §3.7.2.1), and checks a list's length.
@@ -181,6 +186,129 @@ pub fn read_geometry(
     })
 }
 
+/// Drops a strip's leftover vertices and a list's stray indices, which are not triangles; a
+/// non-indexed list has nothing to drop from, so whole triangles are required of it.
+fn keep_whole_triangles(
+    geometry: &mut Geometry,
+    topology: Topology,
+    path: &str,
+) -> Result<(), SceneError> {
+    if let Some(indices) = &mut geometry.indices {
+        indices.truncate(indices.len() / 3 * 3);
+    } else if topology == Topology::Triangles && geometry.positions.len() % 3 != 0 {
+        return Err(SceneError::new(
+            ProblemCode::InvalidPrimitive,
+            format!(
+                "{path}: {} vertices without indices do not make whole triangles",
+                geometry.positions.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A morph target's displacements, one per vertex, for the attributes it moves.
+struct Displacement {
+    positions: Option<Vec<[f32; 3]>>,
+    normals: Option<Vec<[f32; 3]>>,
+}
+
+/// Reads a target's displacements, or `None` when it moves neither POSITION nor NORMAL (and so
+/// leaves the tangents as they are).
+fn read_displacement(
+    root: &Node,
+    (position, normal): (Option<usize>, Option<usize>),
+    buffers: &[&[u8]],
+    limits: &GeometryLimits,
+    vertex_count: usize,
+    path: &str,
+) -> Result<Option<Displacement>, SceneError> {
+    if position.is_none() && normal.is_none() {
+        return Ok(None);
+    }
+    let read = |index: Option<usize>| {
+        index
+            .map(|i| accessor::read_floats_json::<3>(root, i, buffers, limits.max_vertices))
+            .transpose()
+            .map_err(accessor_error)
+    };
+    let displacement = Displacement {
+        positions: read(position)?,
+        normals: read(normal)?,
+    };
+    for (name, delta) in [
+        ("POSITION", &displacement.positions),
+        ("NORMAL", &displacement.normals),
+    ] {
+        if delta.as_ref().is_some_and(|d| d.len() != vertex_count) {
+            return Err(SceneError::new(
+                ProblemCode::InvalidPrimitive,
+                format!("{path}.{name} does not have one element per vertex"),
+            ));
+        }
+    }
+    Ok(Some(displacement))
+}
+
+fn displaced(base: &[[f32; 3]], displacement: &Option<Vec<[f32; 3]>>) -> Vec<[f32; 3]> {
+    match displacement {
+        None => base.to_vec(),
+        Some(d) => base
+            .iter()
+            .zip(d)
+            .map(|(a, d)| [a[0] + d[0], a[1] + d[1], a[2] + d[2]])
+            .collect(),
+    }
+}
+
+/// Tangents of the mesh as the target deforms it: same UVs and triangles, so corner for corner
+/// comparable with the base.
+fn morphed_tangents(
+    geometry: &Geometry,
+    displacement: &Displacement,
+    options: &Options,
+) -> Result<Tangents, CoreError> {
+    let positions = displaced(&geometry.positions, &displacement.positions);
+    let normals = geometry.normals.as_ref().map(|n| {
+        let mut morphed = displaced(n, &displacement.normals);
+        normalize(&mut morphed);
+        morphed
+    });
+    tangent::generate(
+        &MeshInput {
+            positions: &positions,
+            normals: normals.as_deref(),
+            uvs: geometry.uvs.as_deref(),
+            indices: geometry.indices.as_deref(),
+        },
+        options,
+    )
+}
+
+/// Per output vertex of the base, the morphed tangent minus the base one, and how many corners
+/// flip handedness under the target. glTF gives a target one TANGENT displacement per vertex,
+/// so a vertex whose corners disagree once morphed takes its first corner's.
+fn tangent_deltas(base: &SplitPlan, morphed: &Tangents) -> (Vec<[f32; 3]>, u64) {
+    let mut deltas = vec![[0.0f32; 3]; base.vertex_tangents.len()];
+    let mut seen = vec![false; base.vertex_tangents.len()];
+    let mut handedness_changes = 0;
+    for (corner, &v) in base.indices.iter().enumerate() {
+        let v = v as usize;
+        let (Some(done), Some(b)) = (seen.get_mut(v), base.vertex_tangents.get(v)) else {
+            continue;
+        };
+        let m = morphed.corner_tangent(corner);
+        if m[3] != b[3] {
+            handedness_changes += 1;
+        }
+        if !*done {
+            *done = true;
+            deltas[v] = [m[0] - b[0], m[1] - b[1], m[2] - b[2]];
+        }
+    }
+    (deltas, handedness_changes)
+}
+
 /// Runs the core on a key's geometry and on each of its morph targets.
 pub fn compute(
     root: &Node,
@@ -191,93 +319,25 @@ pub fn compute(
     path: &str,
 ) -> Result<Computed, SceneError> {
     let mut geometry = read_geometry(root, key, buffers, limits)?;
-    if let Some(indices) = &mut geometry.indices {
-        // A strip's leftover vertices and a list's stray ones are not triangles.
-        indices.truncate(indices.len() / 3 * 3);
-    } else if key.topology == Topology::Triangles && geometry.positions.len() % 3 != 0 {
-        return Err(SceneError::new(
-            ProblemCode::InvalidPrimitive,
-            format!(
-                "{path}: {} vertices without indices do not make whole triangles",
-                geometry.positions.len()
-            ),
-        ));
-    }
+    keep_whole_triangles(&mut geometry, key.topology, path)?;
     let tangents =
         tangent::generate(&geometry.input(), options).map_err(|e| core_error(path, e))?;
 
     let mut target_deltas = Vec::with_capacity(key.targets.len());
     let mut morph_handedness_changes = 0;
-    for (t, &(position, normal)) in key.targets.iter().enumerate() {
-        if position.is_none() && normal.is_none() {
+    for (t, &target) in key.targets.iter().enumerate() {
+        let target_path = format!("{path}.targets[{t}]");
+        let vertex_count = geometry.positions.len();
+        let Some(displacement) =
+            read_displacement(root, target, buffers, limits, vertex_count, &target_path)?
+        else {
             target_deltas.push(None);
             continue;
-        }
-        let read3 = |index: Option<usize>| {
-            index
-                .map(|i| accessor::read_floats_json::<3>(root, i, buffers, limits.max_vertices))
-                .transpose()
-                .map_err(accessor_error)
         };
-        let (dp, dn) = (read3(position)?, read3(normal)?);
-        let count = geometry.positions.len();
-        for (name, delta) in [("POSITION", &dp), ("NORMAL", &dn)] {
-            if delta.as_ref().is_some_and(|d| d.len() != count) {
-                return Err(SceneError::new(
-                    ProblemCode::InvalidPrimitive,
-                    format!("{path}.targets[{t}].{name} does not have one element per vertex"),
-                ));
-            }
-        }
-        let add = |a: &[[f32; 3]], d: &Option<Vec<[f32; 3]>>| -> Vec<[f32; 3]> {
-            match d {
-                None => a.to_vec(),
-                Some(d) => a
-                    .iter()
-                    .zip(d)
-                    .map(|(a, d)| [a[0] + d[0], a[1] + d[1], a[2] + d[2]])
-                    .collect(),
-            }
-        };
-        let morphed_positions = add(&geometry.positions, &dp);
-        let morphed_normals = geometry.normals.as_ref().map(|n| {
-            let mut m = add(n, &dn);
-            for v in &mut m {
-                let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                if l > 0.0 {
-                    *v = [v[0] / l, v[1] / l, v[2] / l];
-                }
-            }
-            m
-        });
-        let morphed = tangent::generate(
-            &MeshInput {
-                positions: &morphed_positions,
-                normals: morphed_normals.as_deref(),
-                uvs: geometry.uvs.as_deref(),
-                indices: geometry.indices.as_deref(),
-            },
-            options,
-        )
-        .map_err(|e| core_error(&format!("{path}.targets[{t}]"), e))?;
-        // Each output vertex of the base takes the morphed tangent of its first corner.
-        let base = &tangents.split;
-        let mut deltas = vec![[0.0f32; 3]; base.vertex_tangents.len()];
-        let mut seen = vec![false; base.vertex_tangents.len()];
-        for (corner, &v) in base.indices.iter().enumerate() {
-            let v = v as usize;
-            let (Some(done), Some(b)) = (seen.get_mut(v), base.vertex_tangents.get(v)) else {
-                continue;
-            };
-            let m = morphed.corner_tangent(corner);
-            if m[3] != b[3] {
-                morph_handedness_changes += 1;
-            }
-            if !*done {
-                *done = true;
-                deltas[v] = [m[0] - b[0], m[1] - b[1], m[2] - b[2]];
-            }
-        }
+        let morphed = morphed_tangents(&geometry, &displacement, options)
+            .map_err(|e| core_error(&target_path, e))?;
+        let (deltas, handedness_changes) = tangent_deltas(&tangents.split, &morphed);
+        morph_handedness_changes += handedness_changes;
         target_deltas.push(Some(deltas));
     }
     Ok(Computed {
