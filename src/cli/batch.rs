@@ -105,25 +105,28 @@ fn plural(n: u64, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
-pub(crate) fn process(args: ProcessArgs) -> Exit {
-    if args.output.is_some() && args.inputs.len() != 1 {
-        return usage_error(
-            "process",
-            format!(
-                "-o/--output takes exactly one input, and {} were given; use --out-dir DIR for several",
-                args.inputs.len()
-            ),
+/// `-o` names one output file, so it takes exactly one input, and that a file.
+fn check_single_output(args: &ProcessArgs, named_directory: bool) -> Result<(), String> {
+    if args.output.is_none() {
+        return Ok(());
+    }
+    if args.inputs.len() != 1 {
+        return Err(format!(
+            "-o/--output takes exactly one input, and {} were given; use --out-dir DIR for several",
+            args.inputs.len()
+        ));
+    }
+    if named_directory {
+        return Err(
+            "-o/--output takes one input file, not a directory; use --out-dir DIR".to_owned(),
         );
     }
-    let found = paths::collect(&args.inputs, args.out_dir.as_deref());
-    let named_directory = args.inputs.iter().any(|p| p.is_dir());
-    if let (Some(_), true) = (&args.output, named_directory) {
-        return usage_error(
-            "process",
-            "-o/--output takes one input file, not a directory; use --out-dir DIR",
-        );
-    }
-    let format: OutputFormat = match (args.format, &args.output) {
+    Ok(())
+}
+
+/// `--format` when given, else what `-o`'s extension says, else GLB.
+fn output_format(args: &ProcessArgs) -> OutputFormat {
+    match (args.format, &args.output) {
         (Some(format), _) => format,
         (None, Some(out))
             if out
@@ -133,19 +136,34 @@ pub(crate) fn process(args: ProcessArgs) -> Exit {
             OutputFormat::GltfEmbedded
         }
         _ => OutputFormat::Glb,
-    };
-    let destination = match (&args.output, &args.out_dir) {
+    }
+}
+
+fn destination(args: &ProcessArgs) -> Destination {
+    match (&args.output, &args.out_dir) {
         (Some(file), _) => Destination::File(file.clone()),
         (None, Some(dir)) => Destination::Dir(dir.clone()),
         (None, None) => Destination::Beside,
-    };
-    let plan: Vec<Plan> = found
+    }
+}
+
+fn plan_runs<'a>(
+    found: &'a [Found],
+    destination: &Destination,
+    format: OutputFormat,
+) -> Vec<Plan<'a>> {
+    found
         .iter()
         .map(|f| match f {
-            Found::File(input) => Plan::Run(input, paths::output_path(input, &destination, format)),
+            Found::File(input) => Plan::Run(input, paths::output_path(input, destination, format)),
             Found::Unreadable { path, message } => Plan::Fail(path, message),
         })
-        .collect();
+        .collect()
+}
+
+/// Refuses, before anything is written, a plan whose outputs or report would replace an input,
+/// or that writes two outputs to one path.
+fn check_outputs(plan: &[Plan], report: Option<&Path>) -> Result<(), String> {
     let (files, planned): (Vec<&Input>, Vec<PathBuf>) = plan
         .iter()
         .filter_map(|p| match p {
@@ -153,73 +171,124 @@ pub(crate) fn process(args: ProcessArgs) -> Exit {
             Plan::Fail(..) => None,
         })
         .unzip();
-    if let Err(message) = paths::check(&files, &planned, args.report.as_deref()) {
-        return usage_error("process", message);
-    }
+    paths::check(&files, &planned, report)
+}
 
-    let options = args.scene.scene_options(format, true);
-    let bar = progress_bar(files.len());
-    let outcomes: Vec<Outcome> = plan
-        .par_iter()
-        .map(|p| match p {
-            Plan::Run(input, output) => {
-                bar.set_message(input.path.display().to_string());
-                let result = guarded(|| process_one(input, output, &options));
-                bar.inc(1);
-                Outcome {
-                    input: input.path.clone(),
-                    output: Some(output.clone()),
-                    result,
-                }
+fn run_one(plan: &Plan, options: &SceneOptions, bar: &ProgressBar) -> Outcome {
+    match plan {
+        Plan::Run(input, output) => {
+            bar.set_message(input.path.display().to_string());
+            let result = guarded(|| process_one(input, output, options));
+            bar.inc(1);
+            Outcome {
+                input: input.path.clone(),
+                output: Some(output.clone()),
+                result,
             }
-            Plan::Fail(path, message) => Outcome {
-                input: path.to_path_buf(),
-                output: None,
-                result: Err(Failure::bad_input(FailureCode::UnreadableInput, *message)),
-            },
-        })
-        .collect();
-    bar.finish_and_clear();
+        }
+        Plan::Fail(path, message) => Outcome {
+            input: path.to_path_buf(),
+            output: None,
+            result: Err(Failure::bad_input(FailureCode::UnreadableInput, *message)),
+        },
+    }
+}
 
-    let mut exit = Exit::Ok;
-    let (mut ok, mut failed, mut generated, mut vertices_added) = (0u64, 0u64, 0u64, 0u64);
-    for outcome in &outcomes {
+/// Runs the files in parallel; outcomes stay in input order.
+fn run_all(plan: &[Plan], options: &SceneOptions) -> Vec<Outcome> {
+    let files = plan.iter().filter(|p| matches!(p, Plan::Run(..))).count();
+    let bar = progress_bar(files);
+    let outcomes = plan.par_iter().map(|p| run_one(p, options, &bar)).collect();
+    bar.finish_and_clear();
+    outcomes
+}
+
+/// How a run went: the worst exit code and the counts of the closing line.
+struct Summary {
+    exit: Exit,
+    ok: u64,
+    failed: u64,
+    generated: u64,
+    vertices_added: u64,
+}
+
+/// Prints one line per failure, after the parallel run so that lines come in input order.
+fn print_failures(outcomes: &[Outcome]) -> Summary {
+    let mut summary = Summary {
+        exit: Exit::Ok,
+        ok: 0,
+        failed: 0,
+        generated: 0,
+        vertices_added: 0,
+    };
+    for outcome in outcomes {
         match &outcome.result {
             Ok(report) => {
-                ok += 1;
-                generated += report.summary.generated;
-                vertices_added += report.summary.vertices_added;
+                summary.ok += 1;
+                summary.generated += report.summary.generated;
+                summary.vertices_added += report.summary.vertices_added;
             }
             Err(failure) => {
-                failed += 1;
-                exit = exit.worst(failure.exit);
+                summary.failed += 1;
+                summary.exit = summary.exit.worst(failure.exit);
                 eprintln!("{}", failure_line(&outcome.input, failure));
             }
         }
     }
-    if let Some(path) = &args.report {
-        let single = args.inputs.len() == 1 && !named_directory;
-        let written = report_text(&outcomes, single)
-            .map_err(std::io::Error::other)
-            .and_then(|text| write_atomically(path, format!("{text}\n").as_bytes()));
-        if let Err(e) = written {
+    summary
+}
+
+/// Writes the `--report` document. Failing to is [`Exit::Write`] but undoes nothing: the
+/// outputs are written already.
+fn write_report(path: &Path, outcomes: &[Outcome], single: bool) -> Exit {
+    let written = report_text(outcomes, single)
+        .map_err(std::io::Error::other)
+        .and_then(|text| write_atomically(path, format!("{text}\n").as_bytes()));
+    match written {
+        Ok(()) => Exit::Ok,
+        Err(e) => {
             eprintln!(
                 "tspace: {}: cannot write the report: {} ({})",
                 path.display(),
                 io_message(&e),
                 FailureCode::WriteFailed
             );
-            exit = exit.worst(Exit::Write);
+            Exit::Write
         }
     }
+}
+
+fn print_summary(summary: &Summary) {
     eprintln!(
         "tspace: {} ok, {} failed; {} generated, {} added",
-        plural(ok, "file", "files"),
-        failed,
-        plural(generated, "primitive", "primitives"),
-        plural(vertices_added, "vertex", "vertices"),
+        plural(summary.ok, "file", "files"),
+        summary.failed,
+        plural(summary.generated, "primitive", "primitives"),
+        plural(summary.vertices_added, "vertex", "vertices"),
     );
-    exit
+}
+
+pub(crate) fn process(args: ProcessArgs) -> Exit {
+    let named_directory = args.inputs.iter().any(|p| p.is_dir());
+    if let Err(message) = check_single_output(&args, named_directory) {
+        return usage_error("process", message);
+    }
+    let format = output_format(&args);
+    let found = paths::collect(&args.inputs, args.out_dir.as_deref());
+    let plan = plan_runs(&found, &destination(&args), format);
+    if let Err(message) = check_outputs(&plan, args.report.as_deref()) {
+        return usage_error("process", message);
+    }
+
+    let outcomes = run_all(&plan, &args.scene.scene_options(format, true));
+    let mut summary = print_failures(&outcomes);
+    if let Some(path) = &args.report {
+        // One input file gets its report alone; several, or a folder, get an array of them.
+        let single = args.inputs.len() == 1 && !named_directory;
+        summary.exit = summary.exit.worst(write_report(path, &outcomes, single));
+    }
+    print_summary(&summary);
+    summary.exit
 }
 
 pub(crate) fn analyze(args: AnalyzeArgs) -> Exit {
