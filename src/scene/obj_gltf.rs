@@ -104,7 +104,7 @@
 //! against [`ConvertLimits`] before it is allocated.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
-use std::{fmt, io};
+use std::fmt;
 
 use gltf_json as json;
 use json::accessor::{ComponentType, GenericComponentType, Type};
@@ -120,9 +120,9 @@ use json::validation::{Checked, Checked::Valid, USize64};
 use json::{Index, Root};
 use serde_json::{Map, Value};
 
+use super::gltf::created;
 use super::obj::{Corner, Material, Mtl, Obj, Texture};
 use super::uri::PartSet;
-use tspace_json::f32_text;
 
 /// glTF's `mode` for triangle lists, which every primitive here is.
 const TRIANGLES: u32 = 4;
@@ -1756,21 +1756,6 @@ fn members<'v>(value: &'v mut Value, key: &str) -> impl Iterator<Item = &'v mut 
     array.into_iter().flatten()
 }
 
-/// Compact JSON whose numbers read as they always have: every float in the document is an
-/// f32, which serde_json's `Value` holds as the f64 of equal value, and would spell as one
-/// (`0.10000000149011612` for 0.1); this spells it as the shortest text of the f32.
-struct F32Spelling;
-
-impl serde_json::ser::Formatter for F32Spelling {
-    fn write_f64<W: ?Sized + io::Write>(&mut self, writer: &mut W, value: f64) -> io::Result<()> {
-        let narrow = value as f32;
-        match f32_text(narrow) {
-            Some(text) if f64::from(narrow) == value => writer.write_all(text.as_bytes()),
-            _ => serde_json::ser::CompactFormatter.write_f64(writer, value),
-        }
-    }
-}
-
 /// A JSON value written with each primitive's `attributes` in the order of their accessors,
 /// which is the order they were written in (`POSITION`, `NORMAL`, `TEXCOORD_0`, `COLOR_0`),
 /// where `Value` would sort them by name. The tangent step takes a primitive's attributes in
@@ -1807,14 +1792,12 @@ impl serde::Serialize for InOrder<'_> {
 fn to_json(root: &Root, materials: &[MaterialPlan<'_>]) -> Result<String, ConvertError> {
     let mut doc = serde_json::to_value(root).map_err(json_error)?;
     keep_members_as_before(&mut doc, materials);
-    let mut text = Vec::new();
-    let mut serializer = serde_json::Serializer::with_formatter(&mut text, F32Spelling);
+    // Numbers read as they always have: every float here is an f32, spelled as one.
     let in_order = InOrder {
         value: &doc,
         by_accessor: false,
     };
-    serde::Serialize::serialize(&in_order, &mut serializer).map_err(json_error)?;
-    String::from_utf8(text).map_err(json_error)
+    created::to_text(&in_order).map_err(json_error)
 }
 
 /// Converts a parsed OBJ (and its MTL, if any) to a glTF document; see the module

@@ -6,8 +6,10 @@
 //! it is edited in place by `tspace-json`'s splice editor, which is why everything tspace does not
 //! change comes back byte for byte.
 //!
-//! Numbers: a float's `min` or `max` is written with the shortest text that reads back as the
-//! same `f32` (`0.1`, not the `0.10000000149011612` that its widening to `f64` would print).
+//! Numbers: every float tspace creates is an `f32`, and is written with the shortest text that
+//! reads back as the same `f32` (`0.1`, not the `0.10000000149011612` that its widening to `f64`
+//! would print): [`to_text`] and its [`F32Spelling`] do that for this module and for the OBJ
+//! conversion's whole document.
 
 use super::accessor::{ComponentType, ElementType};
 use crate::scene::error::{ProblemCode, SceneError};
@@ -19,13 +21,13 @@ use gltf_json::{Index, Value};
 /// `min` and `max` of an accessor, one value per component.
 pub type Bounds = (Vec<Value>, Vec<Value>);
 
-/// A float bound: the shortest text that reads back as `value` (0 for a non-finite one, which
-/// glTF does not allow there).
+/// A float bound (0 for a non-finite one, which glTF does not allow there).
 pub fn float_bound(value: f32) -> Value {
-    tspace_json::f32_text(value)
-        .filter(|_| value.is_finite())
-        .and_then(|text| serde_json::from_str(&text).ok())
-        .unwrap_or_else(|| Value::from(0))
+    if value.is_finite() {
+        Value::from(value)
+    } else {
+        Value::from(0)
+    }
 }
 
 /// An integer component's bound.
@@ -33,9 +35,39 @@ pub fn integer_bound(value: i64) -> Value {
     Value::from(value)
 }
 
+/// A serde formatter for JSON whose floats are all `f32`s: `Value` holds each as the `f64` of
+/// equal value, and this spells it as the shortest text of the `f32` instead of the `f64`'s.
+/// Any other `f64` is written as usual.
+pub(crate) struct F32Spelling;
+
+impl serde_json::ser::Formatter for F32Spelling {
+    fn write_f64<W: ?Sized + std::io::Write>(
+        &mut self,
+        writer: &mut W,
+        value: f64,
+    ) -> std::io::Result<()> {
+        let narrow = value as f32;
+        match tspace_json::f32_text(narrow) {
+            Some(text) if f64::from(narrow) == value => writer.write_all(text.as_bytes()),
+            _ => serde_json::ser::CompactFormatter.write_f64(writer, value),
+        }
+    }
+}
+
+/// Compact JSON text of `value`, floats spelled by [`F32Spelling`].
+pub(crate) fn to_text(value: &impl serde::Serialize) -> Result<String, serde_json::Error> {
+    let mut text = Vec::new();
+    value.serialize(&mut serde_json::Serializer::with_formatter(
+        &mut text,
+        F32Spelling,
+    ))?;
+    // The serializer writes only UTF-8.
+    Ok(String::from_utf8_lossy(&text).into_owned())
+}
+
 /// Serialized, or an internal error: a typed value that does not serialize is a bug here.
 fn serialized(value: &impl serde::Serialize, what: &str) -> Result<String, SceneError> {
-    serde_json::to_string(value).map_err(|e| {
+    to_text(value).map_err(|e| {
         SceneError::new(
             ProblemCode::InternalEdit,
             format!("tspace could not write a new {what}: {e}"),
@@ -160,10 +192,11 @@ mod tests {
 
     #[test]
     fn float_bounds_are_the_shortest_f32_text() {
-        assert_eq!(float_bound(0.1).to_string(), "0.1");
-        assert_eq!(float_bound(-2.5).to_string(), "-2.5");
-        assert_eq!(float_bound(f32::NAN).to_string(), "0");
-        assert_eq!(float_bound(1e-7).to_string(), "1e-7");
+        let text = |v: f32| to_text(&float_bound(v)).unwrap();
+        assert_eq!(text(0.1), "0.1");
+        assert_eq!(text(-2.5), "-2.5");
+        assert_eq!(text(f32::NAN), "0");
+        assert_eq!(text(1e-7), "1e-7");
     }
 
     #[test]

@@ -4,7 +4,7 @@
 
 pub mod accessor;
 pub mod compute;
-mod created;
+pub(crate) mod created;
 pub mod glb;
 
 pub mod load;
