@@ -7,8 +7,8 @@
 //! type's accepted names with a line of help, so that the command line can show them in
 //! `--help` without a mirror enum of its own.
 //!
-//! Adding an option: a field here, its parser and its arm in [`SceneOptions::set`] (and its
-//! entry in [`SceneOptions::QUERY_KEYS`]); then the flag in `src/cli/mod.rs`.
+//! Adding an option: a field here, its parser and its entry in the setter table behind
+//! [`SceneOptions::set`]; then the flag in `src/cli/mod.rs`.
 
 use super::report::Report;
 use std::fmt;
@@ -191,11 +191,12 @@ impl fmt::Display for OptionError {
         match self {
             OptionError::Unknown { key } => {
                 write!(f, "unknown option {key:?}; the options are ")?;
-                let keys = SceneOptions::QUERY_KEYS;
-                for (i, name) in keys.iter().enumerate() {
+                let keys = SceneOptions::query_keys();
+                let last = keys.len() - 1;
+                for (i, name) in keys.enumerate() {
                     let separator = match i {
                         0 => "",
-                        _ if i == keys.len() - 1 => " and ",
+                        _ if i == last => " and ",
                         _ => ", ",
                     };
                     write!(f, "{separator}{name}")?;
@@ -213,36 +214,51 @@ impl fmt::Display for OptionError {
 
 impl std::error::Error for OptionError {}
 
+/// Sets one option from its text, or says what the option accepts.
+type Setter = fn(&mut SceneOptions, &str) -> Result<(), String>;
+
+/// Every option [`SceneOptions::set`] takes, by the name the query string gives it, with its
+/// parser: the one list that both the setter and the "unknown option" message read.
+const SETTERS: [(&str, Setter); 4] = [
+    ("method", |o, v| {
+        o.method = v
+            .parse()
+            .map_err(|e: tspace_tangent::UnknownMethod| e.to_string())?;
+        Ok(())
+    }),
+    ("overwrite", |o, v| {
+        o.overwrite = parse_switch(v).map_err(|e| e.to_string())?;
+        Ok(())
+    }),
+    ("all", |o, v| {
+        o.all = parse_switch(v).map_err(|e| e.to_string())?;
+        Ok(())
+    }),
+    ("format", |o, v| {
+        o.format = v.parse().map_err(|e: Expected| e.to_string())?;
+        Ok(())
+    }),
+];
+
 impl SceneOptions {
     /// The options [`SceneOptions::set`] takes by name, as the query string names them.
-    pub const QUERY_KEYS: [&'static str; 4] = ["method", "overwrite", "all", "format"];
+    pub fn query_keys() -> impl ExactSizeIterator<Item = &'static str> {
+        SETTERS.iter().map(|(key, _)| *key)
+    }
 
     /// Sets the option `key` from its text, as a query string gives it (already
     /// percent-decoded). Limits and `write` are the caller's, not the user's, and are not named.
     pub fn set(&mut self, key: &str, value: &str) -> Result<(), OptionError> {
-        fn parsed<T, E: fmt::Display>(
-            key: &str,
-            value: &str,
-            parse: impl FnOnce(&str) -> Result<T, E>,
-        ) -> Result<T, OptionError> {
-            parse(value).map_err(|e| OptionError::Invalid {
+        let Some((_, setter)) = SETTERS.iter().find(|(name, _)| *name == key) else {
+            return Err(OptionError::Unknown {
                 key: key.to_owned(),
-                value: value.to_owned(),
-                expected: e.to_string(),
-            })
-        }
-        match key {
-            "method" => self.method = parsed(key, value, str::parse)?,
-            "overwrite" => self.overwrite = parsed(key, value, parse_switch)?,
-            "all" => self.all = parsed(key, value, parse_switch)?,
-            "format" => self.format = parsed(key, value, str::parse)?,
-            _ => {
-                return Err(OptionError::Unknown {
-                    key: key.to_owned(),
-                });
-            }
-        }
-        Ok(())
+            });
+        };
+        setter(self, value).map_err(|expected| OptionError::Invalid {
+            key: key.to_owned(),
+            value: value.to_owned(),
+            expected,
+        })
     }
 }
 
