@@ -699,7 +699,7 @@ proptest! {
         let corner_count = mesh.corner_count();
         let bad_lengths = mesh.normals.as_ref().is_some_and(|n| n.len() != vertex_count)
             || mesh.uvs.as_ref().is_some_and(|t| t.len() != vertex_count)
-            || corner_count % 3 != 0
+            || !corner_count.is_multiple_of(3)
             || mesh.indices.iter().flatten().any(|&i| i as usize >= vertex_count);
         let missing_uvs = mesh.uvs.is_none() && options.method != Method::Axis;
         match generate(&mesh.input(), &options) {

@@ -64,6 +64,11 @@ problem_codes! {
     MalformedObj => "malformed-obj", Malformed, 400, "The OBJ file is malformed";
     MalformedMtl => "malformed-mtl", Malformed, 400, "The MTL file is malformed";
     MalformedMeshopt => "malformed-meshopt", Malformed, 400, "Meshopt-compressed data is malformed";
+    MalformedDraco => "malformed-draco", Malformed, 400, "A Draco-compressed stream is malformed";
+    InvalidDracoExtension => "invalid-draco-extension", Malformed, 400, "A primitive's KHR_draco_mesh_compression extension is invalid";
+    DracoAttributeMissing => "draco-attribute-missing", Malformed, 400, "A Draco stream lacks an attribute its extension names";
+    DracoCountMismatch => "draco-count-mismatch", Malformed, 400, "A Draco stream's counts disagree with its accessors";
+    DracoTypeMismatch => "draco-type-mismatch", Malformed, 400, "A Draco stream's values do not fit their accessor's type";
     MalformedMultipart => "malformed-multipart", Malformed, 400, "The multipart body is malformed";
     InvalidAccessor => "invalid-accessor", Malformed, 400, "An accessor is invalid";
     InvalidPrimitive => "invalid-primitive", Malformed, 400, "A primitive is invalid";
@@ -79,13 +84,13 @@ problem_codes! {
     BufferTooLarge => "buffer-too-large", TooLarge, 413, "A buffer is over the limit";
     TooManyVertices => "too-many-vertices", TooLarge, 413, "An accessor has more elements than allowed";
     TooManyTriangles => "too-many-triangles", TooLarge, 413, "The scene has more triangles than allowed";
+    DracoTooLarge => "draco-too-large", TooLarge, 413, "A Draco stream decodes to more than allowed";
     TooLarge => "too-large", TooLarge, 413, "The scene is over a limit";
     OutputTooLarge => "output-too-large", TooLarge, 413, "The output would be over the format's size limit";
     UnsupportedMediaType => "unsupported-media-type", Unsupported, 415, "The body's media type is not a scene tspace reads";
     MissingResource => "missing-resource", Unprocessable, 422, "A file the scene refers to was not supplied";
     RefusedUri => "refused-uri", Unprocessable, 422, "A URI in the scene is refused";
     UnsupportedVersion => "unsupported-version", Unprocessable, 422, "The glTF version is not supported";
-    DracoRequired => "draco-required", Unprocessable, 422, "The scene requires Draco compression, which tspace does not decode";
     ObjWithoutUvs => "obj-without-uvs", Unprocessable, 422, "The OBJ has no texture coordinates";
     ObjNotConvertible => "obj-not-convertible", Unprocessable, 422, "The OBJ cannot be converted to glTF";
     InternalEdit => "internal-edit", Internal, 500, "tspace could not edit the document";
@@ -133,7 +138,7 @@ impl Serialize for ProblemCode {
     }
 }
 
-/// Lets callers and tests compare with the slug they document (`error.code == "draco-required"`).
+/// Lets callers and tests compare with the slug they document (`error.code == "missing-resource"`).
 impl PartialEq<&str> for ProblemCode {
     fn eq(&self, other: &&str) -> bool {
         self.code() == *other

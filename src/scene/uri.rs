@@ -334,7 +334,9 @@ pub fn decode_base64(text: &[u8]) -> Result<Vec<u8>, UriError> {
     // Checked after the alphabet, so a stray byte is reported as itself, not as a bad length.
     let bad_length = UriError::BadBase64Length { length: text.len() };
     // With padding, the whole must be a multiple of 4 and the padding exactly what completes it.
-    if padding > 0 && (text.len() % 4 != 0 || padding > 2 || padding != (4 - body.len() % 4) % 4) {
+    if padding > 0
+        && (!text.len().is_multiple_of(4) || padding > 2 || padding != (4 - body.len() % 4) % 4)
+    {
         return Err(bad_length);
     }
     if body.len() % 4 == 1 {
@@ -411,10 +413,10 @@ impl<'a> PartSet<'a> {
             if let Some(bytes) = self.find(&path) {
                 return Ok(bytes);
             }
-            if let Some((_, last)) = path.rsplit_once('/') {
-                if let Some(bytes) = self.find(last) {
-                    return Ok(bytes);
-                }
+            if let Some((_, last)) = path.rsplit_once('/')
+                && let Some(bytes) = self.find(last)
+            {
+                return Ok(bytes);
             }
         }
         Err(missing())

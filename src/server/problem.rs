@@ -273,7 +273,7 @@ mod tests {
         assert_eq!(codes, &serde_json::json!(slugs));
         let responses = &api["paths"]["/v1/tangents"]["post"]["responses"];
         let described = responses["422"]["description"].as_str().unwrap_or_default();
-        assert!(described.contains("`draco-required`"), "{responses}");
+        assert!(described.contains("`missing-resource`"), "{responses}");
         assert!(
             responses["404"].is_null(),
             "not-found is no answer of a scene route"

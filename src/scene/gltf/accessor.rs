@@ -16,6 +16,7 @@
 //! exporters break the former, and the data still reads one way only), and an accessor
 //! `byteOffset` without a `bufferView` is ignored.
 
+use std::collections::HashMap;
 use std::fmt;
 
 use tspace_json::Node;
@@ -754,6 +755,70 @@ fn apply_sparse<T: Copy + Default, const S: usize, const N: usize>(
         *slot = layout.element(value_bytes, component);
     }
     Ok(())
+}
+
+/// One accessor's elements from somewhere other than its JSON: decoded from a compressed
+/// primitive (`KHR_draco_mesh_compression`). `count` tightly packed elements of the accessor's
+/// own component and element type.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DecodedAccessor {
+    /// The decoder's count. For Draco this may exceed the accessor's declared `count`, which
+    /// encoders write before the stream splits vertices along attribute seams; the decoded
+    /// geometry is self-consistent and is what viewers show.
+    pub count: usize,
+    pub bytes: Vec<u8>,
+}
+
+/// Decoded accessors, by accessor index.
+pub type DecodedAccessors = HashMap<usize, DecodedAccessor>;
+
+/// Where accessors read their bytes: the loaded buffers, and the decoded accessors, whose data
+/// replaces whatever their JSON points at.
+#[derive(Clone, Copy)]
+pub struct Data<'a> {
+    pub buffers: &'a [&'a [u8]],
+    pub decoded: &'a DecodedAccessors,
+}
+
+impl<'a> Data<'a> {
+    /// [`accessor_from_json`], with a decoded accessor's data in place of its JSON's.
+    pub fn accessor(&self, root: &Node, index: usize) -> Result<Accessor<'a>, AccessorError> {
+        let mut accessor = accessor_from_json(root, index, self.buffers)?;
+        if let Some(decoded) = self.decoded.get(&index) {
+            accessor.count = decoded.count;
+            accessor.byte_offset = 0;
+            accessor.sparse = None;
+            accessor.view = Some(BufferView {
+                buffer: &decoded.bytes,
+                byte_offset: 0,
+                byte_length: decoded.bytes.len(),
+                byte_stride: None,
+            });
+        }
+        Ok(accessor)
+    }
+
+    /// [`Data::accessor`] then [`read_floats`], with decoding errors naming the accessor.
+    pub fn floats<const N: usize>(
+        &self,
+        root: &Node,
+        index: usize,
+        max_elements: usize,
+    ) -> Result<Vec<[f32; N]>, AccessorError> {
+        let accessor = self.accessor(root, index)?;
+        read_floats(&accessor, max_elements).map_err(|e| within(index, e))
+    }
+
+    /// [`Data::accessor`] then [`read_indices`], with decoding errors naming the accessor.
+    pub fn indices(
+        &self,
+        root: &Node,
+        index: usize,
+        max_elements: usize,
+    ) -> Result<Vec<u32>, AccessorError> {
+        let accessor = self.accessor(root, index)?;
+        read_indices(&accessor, max_elements).map_err(|e| within(index, e))
+    }
 }
 
 /// Builds the description of accessor `index` of a glTF document, resolving its buffer views

@@ -2,7 +2,7 @@
 //! accessors, for the base mesh and for every morph target that moves it, and the audit of
 //! tangents a file already has.
 
-use super::accessor::{self, AccessorError, ComponentType};
+use super::accessor::{self, AccessorError, ComponentType, Data};
 use super::plan::{GeometryKey, Topology};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::{Audit, TallyReport};
@@ -96,10 +96,10 @@ fn core_error(path: &str, error: CoreError) -> SceneError {
 fn read_normals(
     root: &Node,
     index: usize,
-    buffers: &[&[u8]],
+    data: Data<'_>,
     limits: &GeometryLimits,
 ) -> Result<Vec<[f32; 3]>, SceneError> {
-    let described = accessor::accessor_from_json(root, index, buffers).map_err(accessor_error)?;
+    let described = data.accessor(root, index).map_err(accessor_error)?;
     let mut normals =
         accessor::read_floats::<3>(&described, limits.max_vertices).map_err(accessor_error)?;
     if described.component_type != ComponentType::F32 {
@@ -155,26 +155,26 @@ fn triangle_list(
 pub fn read_geometry(
     root: &Node,
     key: &GeometryKey,
-    buffers: &[&[u8]],
+    data: Data<'_>,
     limits: &GeometryLimits,
 ) -> Result<Geometry, SceneError> {
-    let positions =
-        accessor::read_floats_json::<3>(root, key.position, buffers, limits.max_vertices)
-            .map_err(accessor_error)?;
+    let positions = data
+        .floats::<3>(root, key.position, limits.max_vertices)
+        .map_err(accessor_error)?;
     let normals = key
         .normal
-        .map(|n| read_normals(root, n, buffers, limits))
+        .map(|n| read_normals(root, n, data, limits))
         .transpose()?;
     let uvs = key
         .texcoord
-        .map(|t| accessor::read_floats_json::<2>(root, t, buffers, limits.max_vertices))
+        .map(|t| data.floats::<2>(root, t, limits.max_vertices))
         .transpose()
         .map_err(accessor_error)?;
     // Index lists are bounded by corners, which may be up to three per triangle.
     let max_corners = limits.max_triangles.saturating_mul(3);
     let indices = key
         .indices
-        .map(|i| accessor::read_indices_json(root, i, buffers, max_corners))
+        .map(|i| data.indices(root, i, max_corners))
         .transpose()
         .map_err(accessor_error)?;
     let indices = triangle_list(key.topology, indices, positions.len());
@@ -195,7 +195,7 @@ fn keep_whole_triangles(
 ) -> Result<(), SceneError> {
     if let Some(indices) = &mut geometry.indices {
         indices.truncate(indices.len() / 3 * 3);
-    } else if topology == Topology::Triangles && geometry.positions.len() % 3 != 0 {
+    } else if topology == Topology::Triangles && !geometry.positions.len().is_multiple_of(3) {
         return Err(SceneError::new(
             ProblemCode::InvalidPrimitive,
             format!(
@@ -218,7 +218,7 @@ struct Displacement {
 fn read_displacement(
     root: &Node,
     (position, normal): (Option<usize>, Option<usize>),
-    buffers: &[&[u8]],
+    data: Data<'_>,
     limits: &GeometryLimits,
     vertex_count: usize,
     path: &str,
@@ -228,7 +228,7 @@ fn read_displacement(
     }
     let read = |index: Option<usize>| {
         index
-            .map(|i| accessor::read_floats_json::<3>(root, i, buffers, limits.max_vertices))
+            .map(|i| data.floats::<3>(root, i, limits.max_vertices))
             .transpose()
             .map_err(accessor_error)
     };
@@ -313,12 +313,12 @@ fn tangent_deltas(base: &SplitPlan, morphed: &Tangents) -> (Vec<[f32; 3]>, u64) 
 pub fn compute(
     root: &Node,
     key: &GeometryKey,
-    buffers: &[&[u8]],
+    data: Data<'_>,
     options: &Options,
     limits: &GeometryLimits,
     path: &str,
 ) -> Result<Computed, SceneError> {
-    let mut geometry = read_geometry(root, key, buffers, limits)?;
+    let mut geometry = read_geometry(root, key, data, limits)?;
     keep_whole_triangles(&mut geometry, key.topology, path)?;
     let tangents =
         tangent::generate(&geometry.input(), options).map_err(|e| core_error(path, e))?;
@@ -329,7 +329,7 @@ pub fn compute(
         let target_path = format!("{path}.targets[{t}]");
         let vertex_count = geometry.positions.len();
         let Some(displacement) =
-            read_displacement(root, target, buffers, limits, vertex_count, &target_path)?
+            read_displacement(root, target, data, limits, vertex_count, &target_path)?
         else {
             target_deltas.push(None);
             continue;

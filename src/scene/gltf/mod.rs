@@ -5,6 +5,7 @@
 pub mod accessor;
 pub mod compute;
 pub(crate) mod created;
+pub mod draco;
 pub mod glb;
 
 pub mod load;
@@ -16,6 +17,7 @@ pub mod write;
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::{MorphReport, PrimitiveReport, Report};
 use crate::scene::{OutputFormat, Processed, SceneOptions};
+use accessor::{Data, DecodedAccessors};
 use compute::{Computed, GeometryLimits};
 use load::{LoadLimits, Resources};
 use plan::{Action, GeometryKey, PlanOptions, PrimitivePlan, Topology};
@@ -30,14 +32,6 @@ fn accessor_count(root: &Node, index: Option<usize>) -> usize {
         .and_then(|i| root.get("accessors")?.index(i)?.get("count")?.as_u64())
         .and_then(|n| usize::try_from(n).ok())
         .unwrap_or(0)
-}
-
-fn extension_listed(root: &Node, list: &str, name: &str) -> bool {
-    root.get(list)
-        .and_then(Node::as_array)
-        .unwrap_or(&[])
-        .iter()
-        .any(|e| e.as_str() == Some(name))
 }
 
 fn primitive_node(root: &Node, mesh: usize, primitive: usize) -> Option<&Node> {
@@ -78,15 +72,19 @@ pub fn process_with<'a>(
     };
     let loaded = load::load(bytes, resources, &load_limits)?;
     let root = loaded.doc.root();
-    refuse_required_draco(root)?;
     let plans = plan::plan(root, &plan_options(options, internal));
-    let jobs = plan_jobs(root, &plans, options.method)?;
+    let jobs = plan_jobs(&plans, options.method);
     check_triangle_budget(root, &jobs.list, limits.max_triangles)?;
     let buffers = loaded.buffer_slices();
-    let computed = compute_jobs(root, &jobs.list, &buffers, options)?;
+    let decoded = decode_draco(root, &plans, &jobs, &buffers, options)?;
+    let data = Data {
+        buffers: &buffers,
+        decoded: &decoded,
+    };
+    let computed = compute_jobs(root, &jobs.list, data, options)?;
     let scene = Scene {
         root,
-        buffers: &buffers,
+        data,
         max_vertices: limits.max_vertices,
     };
     let mut report = report_header(bytes, &loaded, options);
@@ -112,17 +110,6 @@ fn plan_options(options: &SceneOptions, internal: &Internal) -> PlanOptions {
     }
 }
 
-/// A file that lists Draco as required has no uncompressed data to fall back on.
-fn refuse_required_draco(root: &Node) -> Result<(), SceneError> {
-    if extension_listed(root, "extensionsRequired", "KHR_draco_mesh_compression") {
-        return Err(SceneError::new(
-            ProblemCode::DracoRequired,
-            "the file requires KHR_draco_mesh_compression, which tspace does not decode; export it without Draco, or with an uncompressed fallback",
-        ));
-    }
-    Ok(())
-}
-
 /// One computation: a distinct geometry under one method. Primitives that share accessors
 /// (instanced copies, one mesh under several materials) share its job, so each geometry is
 /// computed, and its new accessors written, once.
@@ -140,7 +127,7 @@ struct Jobs {
     of_plan: Vec<Option<usize>>,
 }
 
-fn plan_jobs(root: &Node, plans: &[PrimitivePlan], method: Method) -> Result<Jobs, SceneError> {
+fn plan_jobs(plans: &[PrimitivePlan], method: Method) -> Jobs {
     let mut jobs = Jobs {
         list: Vec::new(),
         of_plan: vec![None; plans.len()],
@@ -154,7 +141,6 @@ fn plan_jobs(root: &Node, plans: &[PrimitivePlan], method: Method) -> Result<Job
             _ => method,
         };
         let path = format!("meshes[{}].primitives[{}]", plan.mesh, plan.primitive);
-        refuse_draco_without_fallback(root, plan, key, &path)?;
         let next = jobs.list.len();
         let job = *index.entry((key.clone(), method)).or_insert(next);
         if job == next {
@@ -163,40 +149,63 @@ fn plan_jobs(root: &Node, plans: &[PrimitivePlan], method: Method) -> Result<Job
         }
         jobs.of_plan[p] = Some(job);
     }
-    Ok(jobs)
+    jobs
 }
 
-/// A Draco-compressed primitive is processed from its uncompressed fallback (and loses the
-/// extension); one whose POSITION has no data of its own has no fallback.
-fn refuse_draco_without_fallback(
+/// Decodes the Draco stream of every primitive a job reads whose accessors have no data of their
+/// own, once per stream and geometry, in parallel. Runs after the triangle budget, so no stream
+/// is decoded for a scene that would be refused anyway.
+fn decode_draco(
     root: &Node,
-    plan: &PrimitivePlan,
-    key: &GeometryKey,
-    path: &str,
-) -> Result<(), SceneError> {
-    let Some(primitive) = primitive_node(root, plan.mesh, plan.primitive) else {
-        return Ok(());
+    plans: &[PrimitivePlan],
+    jobs: &Jobs,
+    buffers: &[&[u8]],
+    options: &SceneOptions,
+) -> Result<DecodedAccessors, SceneError> {
+    let mut seen = std::collections::HashSet::new();
+    let wanted: Vec<(&Node, String)> = plans
+        .iter()
+        .zip(&jobs.of_plan)
+        .filter(|(_, job)| job.is_some())
+        .filter_map(|(plan, _)| {
+            let primitive = primitive_node(root, plan.mesh, plan.primitive)?;
+            let stream = draco::extension(primitive)?.get("bufferView")?.as_u64();
+            let key = (stream, plan.key.clone());
+            (draco::needs_decoding(root, primitive) && seen.insert(key)).then(|| {
+                let path = format!("meshes[{}].primitives[{}]", plan.mesh, plan.primitive);
+                (primitive, path)
+            })
+        })
+        .collect();
+    let limits = draco::DracoLimits {
+        max_vertices: options.limits.max_vertices,
+        max_triangles: options.limits.max_triangles,
+        max_bytes: options.limits.max_buffer_bytes,
     };
-    let position_has_data = root
-        .get("accessors")
-        .and_then(|a| a.index(key.position))
-        .is_some_and(|a| a.get("bufferView").is_some() || a.get("sparse").is_some());
-    if has_draco(primitive) && !position_has_data {
-        return Err(SceneError::new(
-            ProblemCode::DracoRequired,
-            format!(
-                "{path} is compressed with KHR_draco_mesh_compression and has no uncompressed fallback; tspace does not decode Draco"
-            ),
-        ));
+    let results: Vec<_> = wanted
+        .par_iter()
+        .map(|(primitive, path)| draco::decode_primitive(root, primitive, path, buffers, &limits))
+        .collect();
+    let mut decoded = DecodedAccessors::new();
+    for result in results {
+        decoded.extend(result?);
     }
-    Ok(())
+    Ok(decoded)
 }
 
-fn has_draco(primitive: &Node) -> bool {
-    primitive
-        .get("extensions")
-        .and_then(|e| e.get("KHR_draco_mesh_compression"))
-        .is_some()
+/// Whether any accessor of the primitive (attributes or indices) was decoded: its accessors
+/// then hold no data in the file, so every one must be written out.
+fn reads_decoded(primitive: &Node, decoded: &DecodedAccessors) -> bool {
+    let index = |n: &Node| n.as_u64().and_then(|i| usize::try_from(i).ok());
+    let attributes = primitive
+        .get("attributes")
+        .and_then(Node::as_object)
+        .unwrap_or(&[]);
+    attributes
+        .iter()
+        .filter_map(|m| index(&m.value))
+        .chain(primitive.get("indices").and_then(index))
+        .any(|a| decoded.contains_key(&a))
 }
 
 /// Refuses the scene before anything is decoded when its jobs, morph targets included (each is
@@ -231,7 +240,7 @@ fn check_triangle_budget(
 fn compute_jobs(
     root: &Node,
     jobs: &[Job],
-    buffers: &[&[u8]],
+    data: Data<'_>,
     options: &SceneOptions,
 ) -> Result<Vec<Computed>, SceneError> {
     let limits = GeometryLimits {
@@ -250,7 +259,7 @@ fn compute_jobs(
                 parallel: large,
                 ..Options::default()
             };
-            compute::compute(root, &job.key, buffers, &core_options, &limits, &job.path)
+            compute::compute(root, &job.key, data, &core_options, &limits, &job.path)
         })
         .collect();
     results.into_iter().collect()
@@ -282,7 +291,7 @@ fn report_header(bytes: &[u8], loaded: &load::Loaded<'_>, options: &SceneOptions
 /// What every primitive's step reads.
 struct Scene<'s> {
     root: &'s Node,
-    buffers: &'s [&'s [u8]],
+    data: Data<'s>,
     max_vertices: usize,
 }
 
@@ -362,7 +371,9 @@ fn audit_primitive(
         .and_then(|n| n.get("attributes")?.get("TANGENT")?.as_u64())
         .and_then(|i| usize::try_from(i).ok());
     if let Some(index) = tangent {
-        let described = accessor::accessor_from_json(scene.root, index, scene.buffers)
+        let described = scene
+            .data
+            .accessor(scene.root, index)
             .map_err(compute::accessor_error)?;
         let existing = accessor::read_floats::<4>(&described, scene.max_vertices)
             .map_err(compute::accessor_error)?;
@@ -503,14 +514,15 @@ impl Edits {
         c: &Computed,
     ) -> Result<PrimitiveEdit, SceneError> {
         let split = &c.tangents.split;
-        let keeps = c.keeps_vertices(topology);
+        // Decoded accessors have no data in the file: the primitive's are all written anew.
+        let keeps = c.keeps_vertices(topology) && !reads_decoded(primitive, scene.data.decoded);
         let refs = self.job_refs.entry(job).or_default();
         let changes = &mut self.changes;
         let tangent = *refs
             .tangent
             .get_or_insert_with(|| changes.add_floats(&split.vertex_tangents, false));
         let mut edit = PrimitiveEdit {
-            remove_draco: has_draco(primitive),
+            remove_draco: draco::extension(primitive).is_some(),
             ..PrimitiveEdit::default()
         };
         if !keeps {
@@ -599,7 +611,7 @@ impl Edits {
                 None => {
                     let r = self.changes.add_remapped(
                         scene.root,
-                        scene.buffers,
+                        scene.data,
                         index,
                         &c.tangents.split.source_vertex,
                         scene.max_vertices,

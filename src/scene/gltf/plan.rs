@@ -169,10 +169,10 @@ fn material_use(material: Option<&Node>) -> MaterialUse {
     if let Some(info) = material.get("normalTexture") {
         candidates.push(("normalTexture", Some(info)));
     }
-    if let Some(clearcoat) = extension("KHR_materials_clearcoat") {
-        if let Some(info) = clearcoat.get("clearcoatNormalTexture") {
-            candidates.push(("KHR_materials_clearcoat.clearcoatNormalTexture", Some(info)));
-        }
+    if let Some(clearcoat) = extension("KHR_materials_clearcoat")
+        && let Some(info) = clearcoat.get("clearcoatNormalTexture")
+    {
+        candidates.push(("KHR_materials_clearcoat.clearcoatNormalTexture", Some(info)));
     }
     if let Some(anisotropy) = extension("KHR_materials_anisotropy") {
         candidates.push((

@@ -10,7 +10,7 @@
 //! knows ([`super::refs::KNOWN_EXTENSIONS`]) and the file is not meshopt-compressed; otherwise
 //! every byte and index stays where it was and the report says why.
 
-use super::accessor::{self, ComponentType, ElementType};
+use super::accessor::{self, ComponentType, Data, ElementType};
 use super::created::{self, AccessorJson, Bounds, float_bound, integer_bound};
 use super::glb;
 use super::load::{Buffer, BufferSource, Container, Loaded, Resources};
@@ -161,13 +161,14 @@ impl Changes {
     pub fn add_remapped(
         &mut self,
         root: &Node,
-        buffers: &[&[u8]],
+        data: Data<'_>,
         index: usize,
         source: &[u32],
         max_elements: usize,
         is_position: bool,
     ) -> Result<Ref, SceneError> {
-        let described = accessor::accessor_from_json(root, index, buffers)
+        let described = data
+            .accessor(root, index)
             .map_err(super::compute::accessor_error)?;
         let raw =
             accessor::read_raw(&described, max_elements).map_err(super::compute::accessor_error)?;
@@ -435,18 +436,18 @@ fn orphan_accessors(
         if let Some(r) = referenced_before.get_mut(i) {
             *r = true;
         }
-        if !is_edited(owner, changes) {
-            if let Some(r) = referenced_after.get_mut(i) {
-                *r = true;
-            }
+        if !is_edited(owner, changes)
+            && let Some(r) = referenced_after.get_mut(i)
+        {
+            *r = true;
         }
     }
     for members in final_primitive_members(root, changes).values() {
         for (_, r) in members {
-            if let Ref::Old(i) = r {
-                if let Some(a) = referenced_after.get_mut(*i) {
-                    *a = true;
-                }
+            if let Ref::Old(i) = r
+                && let Some(a) = referenced_after.get_mut(*i)
+            {
+                *a = true;
             }
         }
     }
@@ -475,10 +476,10 @@ fn orphan_views(
         if let Some(b) = view_before.get_mut(v) {
             *b = true;
         }
-        if !reference_dies(owner, changes, orphan_accessor) {
-            if let Some(a) = view_after.get_mut(v) {
-                *a = true;
-            }
+        if !reference_dies(owner, changes, orphan_accessor)
+            && let Some(a) = view_after.get_mut(v)
+        {
+            *a = true;
         }
     }
     view_before
@@ -893,19 +894,19 @@ fn edit_buffer_views(
         }
         let b = usize_of(view.get("buffer"));
         let new_buffer = buffers.output_index(b);
-        if new_buffer != b {
-            if let Some(node) = view.get("buffer") {
-                editor
-                    .replace(node, new_buffer.to_string())
-                    .map_err(edit_error)?;
-            }
+        if new_buffer != b
+            && let Some(node) = view.get("buffer")
+        {
+            editor
+                .replace(node, new_buffer.to_string())
+                .map_err(edit_error)?;
         }
-        if let Some(at) = layout.view_position.get(v).copied().flatten() {
-            if at != usize_of(view.get("byteOffset")) {
-                editor
-                    .set_member(view, "byteOffset", at.to_string())
-                    .map_err(edit_error)?;
-            }
+        if let Some(at) = layout.view_position.get(v).copied().flatten()
+            && at != usize_of(view.get("byteOffset"))
+        {
+            editor
+                .set_member(view, "byteOffset", at.to_string())
+                .map_err(edit_error)?;
         }
         // The meshopt extension names a buffer too.
         if let Some(node) = view
@@ -1014,26 +1015,39 @@ fn unlist_draco(
     root: &Node,
     warnings: &mut Vec<String>,
 ) -> Result<(), SceneError> {
-    let Some(used) = root.get("extensionsUsed") else {
-        return Ok(());
-    };
-    let names = used.as_array().unwrap_or(&[]);
-    for (i, name) in names.iter().enumerate() {
-        if name.as_str() == Some("KHR_draco_mesh_compression") {
-            // An empty extensionsUsed is invalid: drop the member with its last name.
-            if names.len() == 1 {
-                editor
-                    .remove_member(root, "extensionsUsed")
-                    .map_err(edit_error)?;
-            } else {
-                editor.remove_element(used, i).map_err(edit_error)?;
-            }
-            warnings.push(
-                "KHR_draco_mesh_compression was removed: the primitives that had it now carry tangents and use their uncompressed data".into(),
-            );
-        }
+    let mut listed = false;
+    for list in ["extensionsUsed", "extensionsRequired"] {
+        listed |= unlist_extension(editor, root, list, "KHR_draco_mesh_compression")?;
+    }
+    if listed {
+        warnings.push(
+            "KHR_draco_mesh_compression was removed: every primitive that had it now carries tangents and is written uncompressed (encoding Draco again would quantize it again)".into(),
+        );
     }
     Ok(())
+}
+
+/// Removes `name` from the array member `list` of the root, and the member with its last name
+/// (an empty list is invalid). Returns whether the name was there.
+fn unlist_extension(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    list: &str,
+    name: &str,
+) -> Result<bool, SceneError> {
+    let Some(array) = root.get(list) else {
+        return Ok(false);
+    };
+    let names = array.as_array().unwrap_or(&[]);
+    let Some(i) = names.iter().position(|n| n.as_str() == Some(name)) else {
+        return Ok(false);
+    };
+    if names.len() == 1 {
+        editor.remove_member(root, list).map_err(edit_error)?;
+    } else {
+        editor.remove_element(array, i).map_err(edit_error)?;
+    }
+    Ok(true)
 }
 
 /// Embedded images lose their URI and name their view (`first_view`: the first image view).
@@ -1323,18 +1337,18 @@ fn apply_primitive_edit(
         let set = edit.targets.get(t).map_or(&[][..], Vec::as_slice);
         set_all(editor, target, set)?;
     }
-    if edit.remove_draco {
-        if let Some(extensions) = primitive.get("extensions") {
-            let only = extensions.as_object().is_some_and(|m| m.len() == 1);
-            if only {
-                editor
-                    .remove_member(primitive, "extensions")
-                    .map_err(edit_error)?;
-            } else {
-                editor
-                    .remove_member(extensions, "KHR_draco_mesh_compression")
-                    .map_err(edit_error)?;
-            }
+    if edit.remove_draco
+        && let Some(extensions) = primitive.get("extensions")
+    {
+        let only = extensions.as_object().is_some_and(|m| m.len() == 1);
+        if only {
+            editor
+                .remove_member(primitive, "extensions")
+                .map_err(edit_error)?;
+        } else {
+            editor
+                .remove_member(extensions, "KHR_draco_mesh_compression")
+                .map_err(edit_error)?;
         }
     }
     Ok(())
