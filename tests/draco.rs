@@ -248,3 +248,23 @@ fn a_primitive_left_alone_keeps_its_draco_stream() {
     assert_eq!(processed.report.summary.generated, 0);
     assert_eq!(processed.bytes.unwrap(), input);
 }
+
+#[test]
+fn a_stream_over_the_requests_limits_is_refused_before_it_is_decoded() {
+    // The box has no UVs, so the axis method; 24 points against a limit of 10.
+    for file in ["Box_draco_sequential.glb", "Box_draco_edgebreaker.glb"] {
+        let input = std::fs::read(workspace_root().join("fixtures/compressed").join(file)).unwrap();
+        let options = SceneOptions {
+            all: true,
+            method: tspace_tangent::Method::Axis,
+            limits: tspace::scene::SceneLimits {
+                max_vertices: 10,
+                ..tspace::scene::SceneLimits::default()
+            },
+            ..SceneOptions::default()
+        };
+        let error = process(&input, &NoResources, &options).err().unwrap();
+        assert_eq!(error.code, "draco-too-large", "{error}");
+        assert!(error.message.contains("meshes[0].primitives[0]"), "{error}");
+    }
+}

@@ -17,11 +17,12 @@ use tspace_testkit::fuzz as fuzz_targets;
 
 type Target = fn(&[u8]);
 
-const TARGETS: [(&str, Target); 5] = [
+const TARGETS: [(&str, Target); 6] = [
     ("glb", fuzz_targets::glb),
     ("gltf", fuzz_targets::gltf),
     ("obj", fuzz_targets::obj),
     ("parts", fuzz_targets::parts),
+    ("draco", fuzz_targets::draco),
     ("core", fuzz_targets::core),
 ];
 
@@ -77,6 +78,20 @@ fn saved_inputs_do_not_panic() {
         failures.len(),
         failures.join("\n")
     );
+}
+
+/// The Draco seeds reach the decoder's far side: each decodes (so mutations start from streams
+/// that work, not from refusals).
+#[test]
+fn draco_seeds_decode() {
+    let seeds = files_in(&fuzz_dir().join("seeds/draco"));
+    assert!(seeds.len() >= 9, "{} Draco seeds", seeds.len());
+    for seed in seeds {
+        let data = std::fs::read(&seed).unwrap();
+        let decoded = fuzz_targets::draco_decoded_accessors(&data)
+            .unwrap_or_else(|e| panic!("{}: {e}", seed.display()));
+        assert!(decoded >= 2, "{}: {decoded} accessors", seed.display());
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -472,5 +487,80 @@ fn make_seeds() {
 
     for (name, bytes) in core_seeds() {
         write("core", name, &bytes);
+    }
+}
+
+/// Seeds for the `draco` target: every Draco primitive of `fixtures/compressed/`, as the header
+/// [`fuzz_targets::draco`] reads (its POSITION, NORMAL and TEXCOORD_0 ids, the declared vertex
+/// and triangle counts, u16 or u32 indices) and its stream. `cargo test --release --test fuzz_replay -- --ignored
+/// make_draco_seeds`.
+#[test]
+#[ignore]
+fn make_draco_seeds() {
+    let dir = fuzz_dir().join("seeds/draco");
+    std::fs::create_dir_all(&dir).unwrap();
+    let compressed = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/compressed");
+    for path in files_in(&compressed) {
+        if path.extension().is_none_or(|e| e != "glb") {
+            continue;
+        }
+        let bytes = std::fs::read(&path).unwrap();
+        let parsed = glb::parse(&bytes).unwrap();
+        let doc: Value = serde_json::from_slice(parsed.json).unwrap();
+        let bin = parsed.bin.unwrap_or_default();
+        let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
+        for (m, mesh) in doc["meshes"].as_array().into_iter().flatten().enumerate() {
+            for (p, primitive) in mesh["primitives"].as_array().unwrap().iter().enumerate() {
+                let ext = &primitive["extensions"]["KHR_draco_mesh_compression"];
+                if !ext.is_object() {
+                    continue;
+                }
+                let id = |semantic: &str| {
+                    ext["attributes"][semantic]
+                        .as_u64()
+                        .map_or(0xFF, |i| i as u8)
+                };
+                let accessor = |i: &Value| &doc["accessors"][i.as_u64().unwrap() as usize];
+                let position = accessor(&primitive["attributes"]["POSITION"]);
+                let count = position["count"].as_u64().unwrap() as u16;
+                let normal_i8 = primitive["attributes"]["NORMAL"].is_u64()
+                    && accessor(&primitive["attributes"]["NORMAL"])["componentType"] == 5120;
+                let uv = &primitive["attributes"]["TEXCOORD_0"];
+                let uv_type = match uv.is_u64().then(|| accessor(uv)["componentType"].as_u64()) {
+                    Some(Some(5123)) => 1u8,
+                    Some(Some(5121)) => 2,
+                    Some(Some(5122)) => 3,
+                    _ => 0,
+                };
+                let indices = primitive["indices"].is_u64();
+                let u32_indices =
+                    indices && accessor(&primitive["indices"])["componentType"] == 5125;
+                let flags =
+                    u8::from(indices) | u8::from(u32_indices) << 1 | u8::from(normal_i8) << 2;
+                let [lo, hi] = count.to_le_bytes();
+                let triangles = if indices {
+                    (accessor(&primitive["indices"])["count"].as_u64().unwrap() / 3) as u16
+                } else {
+                    0
+                };
+                let [t_lo, t_hi] = triangles.to_le_bytes();
+                let mut seed = vec![
+                    id("POSITION"),
+                    id("NORMAL"),
+                    id("TEXCOORD_0"),
+                    uv_type,
+                    lo,
+                    hi,
+                    flags,
+                    t_lo,
+                    t_hi,
+                ];
+                let view = &doc["bufferViews"][ext["bufferView"].as_u64().unwrap() as usize];
+                let start = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+                let end = start + view["byteLength"].as_u64().unwrap() as usize;
+                seed.extend_from_slice(&bin[start..end]);
+                std::fs::write(dir.join(format!("{stem}_m{m}p{p}")), seed).unwrap();
+            }
+        }
     }
 }

@@ -67,6 +67,70 @@ fn quad(edit: impl FnOnce(&mut Value)) -> Vec<u8> {
     glb(&doc, &b.bin)
 }
 
+/// The Draco box of `fixtures/compressed/Box_draco_sequential.glb` (24 vertices, 12 triangles,
+/// POSITION and NORMAL in a sequential stream), given an uncompressed TEXCOORD_0 and a normal map
+/// so that it gets tangents; then `edit` breaks the document or the stream.
+fn draco_box(edit: impl FnOnce(&mut Value, &mut Vec<u8>)) -> Vec<u8> {
+    let input = fixture("compressed/Box_draco_sequential.glb");
+    let parsed = tspace::scene::gltf::glb::parse(&input).unwrap();
+    let mut doc: Value = serde_json::from_slice(parsed.json).unwrap();
+    let bin = parsed.bin.unwrap();
+    let view = &doc["bufferViews"][0];
+    let start = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let mut stream = bin[start..start + view["byteLength"].as_u64().unwrap() as usize].to_vec();
+    let uvs = doc["accessors"].as_array().unwrap().len();
+    doc["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"bufferView": 1, "componentType": 5126, "count": 24, "type": "VEC2"}));
+    let primitive = &mut doc["meshes"][0]["primitives"][0];
+    primitive["attributes"]["TEXCOORD_0"] = json!(uvs);
+    primitive["material"] = json!(0);
+    doc["materials"] = normal_mapped(0);
+    texture_stub(&mut doc);
+    edit(&mut doc, &mut stream);
+    // The stream, then the UVs (each corner of each face a different one), 4-byte aligned.
+    let mut bin = stream.clone();
+    bin.resize(stream.len().next_multiple_of(4), 0);
+    let uv_offset = bin.len();
+    for v in 0..24u32 {
+        let (u, w) = ((v % 4 / 2) as f32, (v % 2) as f32);
+        bin.extend(u.to_le_bytes());
+        bin.extend(w.to_le_bytes());
+    }
+    doc["bufferViews"][0]["byteOffset"] = json!(0);
+    if doc["bufferViews"][0]["byteLength"] == json!("keep") {
+        doc["bufferViews"][0]["byteLength"] = json!(1_000_000);
+    } else {
+        doc["bufferViews"][0]["byteLength"] = json!(stream.len());
+    }
+    doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 0, "byteOffset": uv_offset, "byteLength": 24 * 8}));
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    glb(&doc, &bin)
+}
+
+/// A Draco varint (LEB128) of `n`.
+fn varint(mut n: u64) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let byte = (n & 0x7f) as u8;
+        n >>= 7;
+        if n == 0 {
+            out.push(byte);
+            return out;
+        }
+        out.push(byte | 0x80);
+    }
+}
+
+/// The sequential stream's header: "DRACO", version 2.2, mesh, sequential, flags, then the face
+/// and point counts as varints.
+const DRACO_FACES_AT: usize = 11;
+const DRACO_POINTS_AT: usize = 12;
+
 fn gltf_json(doc: Value) -> Body {
     Body::Raw("model/gltf+json", serde_json::to_vec(&doc).unwrap())
 }
@@ -155,6 +219,49 @@ fn cases() -> Vec<Case> {
         case("buffer URI file:///etc/passwd", with_buffer_uri("file:///etc/passwd"), 422, "missing-resource"),
         case("buffer URI http://127.0.0.1:1/x", with_buffer_uri("http://127.0.0.1:1/x"), 422, "missing-resource"),
         case("buffer URI with a bad escape", with_buffer_uri("%zz.bin"), 422, "missing-resource"),
+        case("Draco box with an uncompressed TEXCOORD_0", Body::Raw("model/gltf-binary", draco_box(|_, _| {})), 200, "\"generated\""),
+        case("Draco stream truncated to half", Body::Raw("model/gltf-binary", draco_box(|_, s| s.truncate(s.len() / 2))), 400, "malformed-draco"),
+        case("Draco stream of zeros after its header", Body::Raw("model/gltf-binary", draco_box(|_, s| s[13..].fill(0))), 400, "malformed-draco"),
+        case("Draco stream claiming 2^31 faces", Body::Raw("model/gltf-binary", draco_box(|_, s| {
+            s.splice(DRACO_FACES_AT..=DRACO_FACES_AT, varint(1 << 31));
+        })), 400, "malformed-draco"),
+        case("Draco stream claiming 2^31 points", Body::Raw("model/gltf-binary", draco_box(|_, s| {
+            s.splice(DRACO_POINTS_AT..=DRACO_POINTS_AT, varint(1 << 31));
+        })), 400, "malformed-draco"),
+        case("Draco attribute id that does not exist", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            d["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["attributes"]["NORMAL"] = json!(99);
+        })), 400, "draco-attribute-missing"),
+        case("Draco attribute id of 2^40", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            d["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["attributes"]["NORMAL"] = json!(1u64 << 40);
+        })), 400, "invalid-draco-extension"),
+        case("Draco extension without a bufferView", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            d["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"].as_object_mut().unwrap().remove("bufferView");
+        })), 400, "invalid-draco-extension"),
+        case("Draco stream's view past its buffer", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            d["bufferViews"][0]["byteLength"] = json!("keep");
+        })), 400, "invalid-draco-extension"),
+        case("Draco POSITION accessor count above the stream's points", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            let position = d["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize;
+            d["accessors"][position]["count"] = json!(48);
+        })), 400, "draco-count-mismatch"),
+        case("Draco indices count other than the stream's", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            let indices = d["meshes"][0]["primitives"][0]["indices"].as_u64().unwrap() as usize;
+            d["accessors"][indices]["count"] = json!(30);
+        })), 400, "draco-count-mismatch"),
+        case("uncompressed attribute beside a Draco stream with other counts", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            let uv = d["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"].as_u64().unwrap() as usize;
+            d["accessors"][uv]["count"] = json!(20);
+        })), 400, "draco-count-mismatch"),
+        case("valid Draco stream under a VEC4 NORMAL accessor", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            let normal = d["meshes"][0]["primitives"][0]["attributes"]["NORMAL"].as_u64().unwrap() as usize;
+            d["accessors"][normal]["type"] = json!("VEC4");
+        })), 400, "draco-type-mismatch"),
+        case("float Draco positions under an UNSIGNED_BYTE accessor", Body::Raw("model/gltf-binary", draco_box(|d, _| {
+            let position = d["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap() as usize;
+            d["accessors"][position]["componentType"] = json!(5121);
+            d["accessors"][position].as_object_mut().unwrap().remove("min");
+            d["accessors"][position].as_object_mut().unwrap().remove("max");
+        })), 400, "draco-type-mismatch"),
         case("meshopt data that is garbage", Body::Raw("model/gltf-binary", quad(|d| {
             d["bufferViews"][0]["extensions"] = json!({"EXT_meshopt_compression": {"buffer": 0, "byteLength": 8, "byteStride": 12, "count": 4, "mode": "ATTRIBUTES"}});
             d["buffers"].as_array_mut().unwrap().push(json!({"byteLength": 48}));

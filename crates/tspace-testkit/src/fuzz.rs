@@ -10,6 +10,8 @@
 //!   `.gltf` input alike, with no external resources.
 //! - [`obj`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte.
 //! - [`parts`]: a multipart upload, as length-prefixed records (see [`parts`]).
+//! - [`draco()`]: a Draco stream under a declared layout, decoded on its own and then through
+//!   the whole scene path.
 //! - [`core()`]: arbitrary geometry straight into [`tspace_tangent::generate`], with the core's
 //!   invariants checked on every successful result.
 //!
@@ -19,6 +21,7 @@
 
 use crate::invariants;
 use tspace::scene::gltf::accessor::{self, ElementType};
+use tspace::scene::gltf::draco;
 use tspace::scene::gltf::glb as glb_container;
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
 use tspace::scene::input::{self, InputKind};
@@ -440,4 +443,136 @@ pub fn core(data: &[u8]) {
             }
         }
     }
+}
+
+/// The Draco header of [`draco`]: the declared layout a stream is decoded under.
+const DRACO_HEADER: usize = 9;
+
+/// A `KHR_draco_mesh_compression` stream under a document the first [`DRACO_HEADER`] bytes
+/// declare: the Draco ids of POSITION, NORMAL and TEXCOORD_0 (`0xFF`: absent; POSITION always
+/// present), the TEXCOORD_0 component type (by its low two bits: float, normalized u16, normalized
+/// u8, i16), the declared vertex count (u16, little-endian), flags (bit 0: indices, bit 1: u32
+/// rather than u16 indices, bit 2: NORMAL as normalized i8) and the declared triangle count
+/// (u16). The rest is the stream.
+///
+/// The stream is decoded on its own ([`draco::decode_primitive`]); whatever decodes must fill
+/// each accessor exactly (count × element size). Then the same document and stream, with a
+/// normal map, take the whole scene path as a GLB.
+pub fn draco(data: &[u8]) {
+    let Some((header, stream)) = data.split_first_chunk::<DRACO_HEADER>() else {
+        return;
+    };
+    let text =
+        serde_json::to_vec(&draco_document(header, stream.len())).expect("a JSON value serializes");
+    let _ = decode_draco_input(&text, stream);
+    let glb = glb_container::write(&text, Some(stream), &[]).expect("a small GLB fits");
+    run_scene(InputKind::Glb, &glb, &NoResources, &scene_options(data));
+}
+
+/// How many accessors a [`draco`] input decodes to, or why it does not: lets a test check that
+/// the seeds reach the decoder's far side.
+pub fn draco_decoded_accessors(data: &[u8]) -> Result<usize, String> {
+    let (header, stream) = data
+        .split_first_chunk::<DRACO_HEADER>()
+        .ok_or("shorter than the header")?;
+    let text =
+        serde_json::to_vec(&draco_document(header, stream.len())).expect("a JSON value serializes");
+    decode_draco_input(&text, stream)
+}
+
+fn decode_draco_input(text: &[u8], stream: &[u8]) -> Result<usize, String> {
+    let Ok(parsed) = tspace_json::Document::parse(text) else {
+        panic!("the fuzz document does not parse");
+    };
+    let root = parsed.root();
+    let primitive = root
+        .get("meshes")
+        .and_then(|m| m.index(0))
+        .and_then(|m| m.get("primitives"))
+        .and_then(|p| p.index(0))
+        .expect("the fuzz document has its primitive");
+    let limits = draco::DracoLimits {
+        max_vertices: LIMITS.max_vertices,
+        max_triangles: LIMITS.max_triangles,
+        max_bytes: LIMITS.max_buffer_bytes,
+    };
+    let decoded = draco::decode_primitive(root, primitive, "fuzz", &[stream], &limits)
+        .map_err(|e| e.to_string())?;
+    for (index, accessor) in &decoded {
+        let described = accessor::accessor_from_json(root, *index, &[])
+            .expect("a decoded accessor is described by the document");
+        let element = described.component_type.size() * described.element_type.components();
+        assert_eq!(
+            accessor.bytes.len(),
+            accessor.count * element,
+            "accessors[{index}] is not filled exactly"
+        );
+        assert!(accessor.count <= LIMITS.max_vertices.max(LIMITS.max_triangles * 3));
+    }
+    Ok(decoded.len())
+}
+
+fn draco_document(header: &[u8; DRACO_HEADER], stream_len: usize) -> serde_json::Value {
+    use serde_json::json;
+    let [
+        position_id,
+        normal_id,
+        uv_id,
+        uv_type,
+        count_lo,
+        count_hi,
+        flags,
+        tri_lo,
+        tri_hi,
+    ] = *header;
+    let count = u16::from_le_bytes([count_lo, count_hi]);
+    let mut accessors = vec![json!({"componentType": 5126, "count": count, "type": "VEC3"})];
+    let mut attributes = serde_json::Map::new();
+    let mut ids = serde_json::Map::new();
+    attributes.insert("POSITION".into(), json!(0));
+    ids.insert("POSITION".into(), json!(position_id));
+    if normal_id != 0xFF {
+        let normal = if flags & 4 != 0 {
+            json!({"componentType": 5120, "normalized": true, "count": count, "type": "VEC3"})
+        } else {
+            json!({"componentType": 5126, "count": count, "type": "VEC3"})
+        };
+        attributes.insert("NORMAL".into(), json!(accessors.len()));
+        ids.insert("NORMAL".into(), json!(normal_id));
+        accessors.push(normal);
+    }
+    if uv_id != 0xFF {
+        let (component_type, normalized) = match uv_type & 3 {
+            0 => (5126, false),
+            1 => (5123, true),
+            2 => (5121, true),
+            _ => (5122, false),
+        };
+        attributes.insert("TEXCOORD_0".into(), json!(accessors.len()));
+        ids.insert("TEXCOORD_0".into(), json!(uv_id));
+        accessors.push(
+            json!({"componentType": component_type, "normalized": normalized,
+            "count": count, "type": "VEC2"}),
+        );
+    }
+    let mut primitive = json!({"attributes": attributes, "material": 0,
+        "extensions": {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": ids}}});
+    if flags & 1 != 0 {
+        let component_type = if flags & 2 != 0 { 5125 } else { 5123 };
+        primitive["indices"] = json!(accessors.len());
+        accessors.push(json!({"componentType": component_type,
+            "count": u32::from(u16::from_le_bytes([tri_lo, tri_hi])) * 3, "type": "SCALAR"}));
+    }
+    json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_draco_mesh_compression"],
+        "extensionsRequired": ["KHR_draco_mesh_compression"],
+        "buffers": [{"byteLength": stream_len}],
+        "bufferViews": [{"buffer": 0, "byteLength": stream_len}],
+        "accessors": accessors,
+        "meshes": [{"primitives": [primitive]}],
+        "materials": [{"normalTexture": {"index": 0}}],
+        "textures": [{"source": 0}],
+        "images": [{"mimeType": "image/png", "bufferView": 0}],
+    })
 }

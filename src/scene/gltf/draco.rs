@@ -270,11 +270,18 @@ fn decode_stream(
     limits: &DracoLimits,
     ext_path: &str,
 ) -> Result<PackedGeometry, SceneError> {
+    // Draco checks points only for point clouds; a mesh's are bounded through its decoded
+    // bytes: at most 16 (a float VEC4) per vertex and attribute, so no more vertices than the
+    // limit can be decoded, whatever the stream claims.
+    let per_vertex = 16u64.saturating_mul(parsed.attributes().len().max(1) as u64);
+    let max_bytes = (limits.max_vertices as u64)
+        .saturating_mul(per_vertex)
+        .min(limits.max_bytes as u64);
     let mut contract = DracoPrimitiveContract::new().with_limits(
         draco_gltf::DecodeLimits::default()
             .with_max_points(limits.max_vertices as u64)
             .with_max_faces(limits.max_triangles as u64)
-            .with_max_decoded_bytes(limits.max_bytes as u64),
+            .with_max_decoded_bytes(max_bytes),
     );
     for (name, _, d) in declared {
         if *name == "indices" {
@@ -283,9 +290,20 @@ fn decode_stream(
             contract = contract.with_attribute(*name, d.count as u64, d.normalized);
         }
     }
-    parsed
+    let geometry = parsed
         .decode(payload, &contract)
-        .map_err(|e| decode_error(e, ext_path))
+        .map_err(|e| decode_error(e, ext_path))?;
+    if geometry.vertex_count() > limits.max_vertices {
+        return Err(SceneError::new(
+            ProblemCode::DracoTooLarge,
+            format!(
+                "{ext_path}: the compressed stream decodes to {} vertices; the limit is {}",
+                geometry.vertex_count(),
+                limits.max_vertices
+            ),
+        ));
+    }
+    Ok(geometry)
 }
 
 fn decode_error(error: draco_gltf::Error, ext_path: &str) -> SceneError {

@@ -11,6 +11,7 @@ pub mod glb;
 pub mod load;
 
 pub mod plan;
+pub mod quantize;
 pub mod refs;
 pub mod write;
 
@@ -169,7 +170,9 @@ fn decode_draco(
         .filter(|(_, job)| job.is_some())
         .filter_map(|(plan, _)| {
             let primitive = primitive_node(root, plan.mesh, plan.primitive)?;
-            let stream = draco::extension(primitive)?.get("bufferView")?.as_u64();
+            let stream = draco::extension(primitive)?
+                .get("bufferView")
+                .and_then(Node::as_u64);
             let key = (stream, plan.key.clone());
             (draco::needs_decoding(root, primitive) && seen.insert(key)).then(|| {
                 let path = format!("meshes[{}].primitives[{}]", plan.mesh, plan.primitive);
