@@ -10,7 +10,7 @@ mod paths;
 
 use crate::config::ServeArgs;
 use crate::scene::options::Choices;
-use crate::scene::{OutputFormat, SceneOptions};
+use crate::scene::{OutputFormat, SceneOptions, TangentType};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
@@ -106,6 +106,9 @@ struct SceneArgs {
     /// Give tangents to every triangle primitive, normal map or not.
     #[arg(long)]
     all: bool,
+    /// The TANGENT's component type.
+    #[arg(long, value_parser = choice::<TangentType>(), default_value = "auto")]
+    tangents: TangentType,
 }
 
 impl SceneArgs {
@@ -117,6 +120,7 @@ impl SceneArgs {
             all: self.all,
             format,
             write,
+            tangents: self.tangents,
             ..SceneOptions::default()
         }
     }

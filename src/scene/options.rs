@@ -71,6 +71,39 @@ impl FromStr for OutputFormat {
     }
 }
 
+/// The component type of the TANGENT tspace writes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TangentType {
+    /// The normals' own precision: normalized BYTE or SHORT where NORMAL is (KHR_mesh_quantization),
+    /// float everywhere else.
+    #[default]
+    Auto,
+    /// Always float.
+    Float,
+}
+
+impl TangentType {
+    pub const ALL: [TangentType; 2] = [TangentType::Auto, TangentType::Float];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            TangentType::Auto => "auto",
+            TangentType::Float => "float",
+        }
+    }
+}
+
+impl FromStr for TangentType {
+    type Err = Expected;
+
+    fn from_str(name: &str) -> Result<TangentType, Expected> {
+        TangentType::ALL
+            .into_iter()
+            .find(|t| t.name() == name)
+            .ok_or(Expected("auto or float"))
+    }
+}
+
 /// A value outside the accepted ones; the message says what is accepted (callers add which
 /// value was given, and where).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -125,6 +158,24 @@ impl Choices for Method {
     }
 }
 
+impl Choices for TangentType {
+    fn choices() -> Vec<Choice> {
+        TangentType::ALL
+            .into_iter()
+            .map(|t| Choice {
+                name: t.name(),
+                aliases: &[],
+                help: match t {
+                    TangentType::Auto => {
+                        "The normals' precision: normalized byte or short where NORMAL is quantized, else float"
+                    }
+                    TangentType::Float => "Always float",
+                },
+            })
+            .collect()
+    }
+}
+
 impl Choices for OutputFormat {
     fn choices() -> Vec<Choice> {
         OutputFormat::ALL
@@ -156,6 +207,8 @@ pub struct SceneOptions {
     pub normal_mode: NormalMode,
     /// Write the scene; `false` only analyses and reports.
     pub write: bool,
+    /// The TANGENT's component type.
+    pub tangents: TangentType,
     pub limits: SceneLimits,
 }
 
@@ -168,6 +221,7 @@ impl Default for SceneOptions {
             format: OutputFormat::Glb,
             normal_mode: NormalMode::Flat,
             write: true,
+            tangents: TangentType::Auto,
             limits: SceneLimits::default(),
         }
     }
@@ -219,7 +273,7 @@ type Setter = fn(&mut SceneOptions, &str) -> Result<(), String>;
 
 /// Every option [`SceneOptions::set`] takes, by the name the query string gives it, with its
 /// parser: the one list that both the setter and the "unknown option" message read.
-const SETTERS: [(&str, Setter); 4] = [
+const SETTERS: [(&str, Setter); 5] = [
     ("method", |o, v| {
         o.method = v
             .parse()
@@ -236,6 +290,10 @@ const SETTERS: [(&str, Setter); 4] = [
     }),
     ("format", |o, v| {
         o.format = v.parse().map_err(|e: Expected| e.to_string())?;
+        Ok(())
+    }),
+    ("tangents", |o, v| {
+        o.tangents = v.parse().map_err(|e: Expected| e.to_string())?;
         Ok(())
     }),
 ];
@@ -290,6 +348,7 @@ mod tests {
     fn every_listed_choice_parses_back() {
         choices_parse_back::<Method>(Method::name);
         choices_parse_back::<OutputFormat>(OutputFormat::name);
+        choices_parse_back::<TangentType>(TangentType::name);
     }
 
     #[test]
@@ -321,7 +380,7 @@ mod tests {
         );
         assert_eq!(
             message("colour", "red"),
-            "unknown option \"colour\"; the options are method, overwrite, all and format"
+            "unknown option \"colour\"; the options are method, overwrite, all, format and tangents"
         );
     }
 }

@@ -88,6 +88,9 @@ pub struct PrimitiveReport {
     /// The core's findings; absent when `shared_with` is set (they are on that primitive).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub diagnostics: Option<Box<DiagnosticsReport>>,
+    /// The TANGENT written (generated or overwritten primitives only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tangent: Option<TangentReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub morph_targets: Option<Box<MorphReport>>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -140,6 +143,35 @@ pub struct FallbackReport {
 }
 
 /// Tangent deltas computed for morph targets.
+/// The component type of a written TANGENT, and for a quantized one what quantizing cost.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct TangentReport {
+    /// `float`, or the normals' own `byte` or `short` (normalized, KHR_mesh_quantization).
+    pub component_type: &'static str,
+    /// The largest angle between a computed tangent and its quantized value, in degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_quantization_degrees: Option<f32>,
+}
+
+impl TangentReport {
+    pub fn new(quantized: Option<(crate::scene::gltf::quantize::Snorm, f32)>) -> TangentReport {
+        use crate::scene::gltf::quantize::Snorm;
+        match quantized {
+            None => TangentReport {
+                component_type: "float",
+                max_quantization_degrees: None,
+            },
+            Some((snorm, degrees)) => TangentReport {
+                component_type: match snorm {
+                    Snorm::I8 => "byte",
+                    Snorm::I16 => "short",
+                },
+                max_quantization_degrees: Some(degrees),
+            },
+        }
+    }
+}
+
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct MorphReport {
     pub targets: u64,

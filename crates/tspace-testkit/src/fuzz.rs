@@ -26,7 +26,7 @@ use tspace::scene::gltf::glb as glb_container;
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
 use tspace::scene::input::{self, InputKind};
 use tspace::scene::uri::PartSet;
-use tspace::scene::{OutputFormat, SceneLimits, SceneOptions};
+use tspace::scene::{OutputFormat, SceneLimits, SceneOptions, TangentType};
 use tspace_tangent::{
     self as tangent, CoreError, MeshInput, Method, NormalMode, Options, UvOrigin, Weighting,
 };
@@ -73,6 +73,11 @@ fn scene_options(data: &[u8]) -> SceneOptions {
         },
         // Mostly written, sometimes only analysed.
         write: h & 0x300 != 0x300,
+        tangents: if h & 0x400 != 0 {
+            TangentType::Float
+        } else {
+            TangentType::Auto
+        },
         limits: LIMITS,
     }
 }

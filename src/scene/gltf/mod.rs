@@ -16,12 +16,13 @@ pub mod refs;
 pub mod write;
 
 use crate::scene::error::{ProblemCode, SceneError};
-use crate::scene::report::{MorphReport, PrimitiveReport, Report};
-use crate::scene::{OutputFormat, Processed, SceneOptions};
+use crate::scene::report::{MorphReport, PrimitiveReport, Report, TangentReport};
+use crate::scene::{OutputFormat, Processed, SceneOptions, TangentType};
 use accessor::{Data, DecodedAccessors};
 use compute::{Computed, GeometryLimits};
 use load::{LoadLimits, Resources};
 use plan::{Action, GeometryKey, PlanOptions, PrimitivePlan, Topology};
+use quantize::Snorm;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use tspace_json::Node;
@@ -87,6 +88,7 @@ pub fn process_with<'a>(
         root,
         data,
         max_vertices: limits.max_vertices,
+        tangents: options.tangents,
     };
     let mut report = report_header(bytes, &loaded, options);
     let edits = report_primitives(&scene, &plans, &jobs, &computed, &mut report)?;
@@ -296,6 +298,7 @@ struct Scene<'s> {
     root: &'s Node,
     data: Data<'s>,
     max_vertices: usize,
+    tangents: TangentType,
 }
 
 /// One report entry per plan, in plan order; for each primitive that gets tangents, its edit.
@@ -418,7 +421,13 @@ fn generate_primitive(
     let Some(primitive) = primitive_node(scene.root, plan.mesh, plan.primitive) else {
         return Ok(false);
     };
-    let edit = edits.edit_primitive(scene, primitive, key.topology, job, c)?;
+    let snorm = tangent_snorm(scene, key, c);
+    let edit = edits.edit_primitive(scene, primitive, key.topology, job, c, snorm)?;
+    entry.tangent = edits
+        .job_refs
+        .get(&job)
+        .and_then(|refs| refs.tangent)
+        .map(|(_, quantized)| TangentReport::new(quantized));
     if !key.targets.is_empty() {
         entry.morph_targets = Some(Box::new(MorphReport {
             targets: key.targets.len() as u64,
@@ -482,10 +491,60 @@ fn write_scene<'a>(
     Ok(Some(out))
 }
 
+/// The normalized type TANGENT takes: NORMAL's own when it is a normalized BYTE or SHORT read
+/// from the file (generated normals are float), unless float is asked for.
+fn tangent_snorm(scene: &Scene<'_>, key: &GeometryKey, c: &Computed) -> Option<Snorm> {
+    if scene.tangents == TangentType::Float || c.tangents.normals.is_some() {
+        return None;
+    }
+    let normal = scene.data.accessor(scene.root, key.normal?).ok()?;
+    match (normal.component_type, normal.normalized) {
+        (accessor::ComponentType::I8, true) => Some(Snorm::I8),
+        (accessor::ComponentType::I16, true) => Some(Snorm::I16),
+        _ => None,
+    }
+}
+
+/// The job's TANGENT accessor: float, or quantized to `snorm` as close to the float tangents
+/// as the type allows (and as orthogonal to the decoded normals), with the largest angle that
+/// added.
+fn add_tangents(
+    changes: &mut Changes,
+    c: &Computed,
+    snorm: Option<Snorm>,
+) -> (Ref, Option<(Snorm, f32)>) {
+    let split = &c.tangents.split;
+    let Some(snorm) = snorm else {
+        return (changes.add_floats(&split.vertex_tangents, false), None);
+    };
+    let source_normals = c.geometry.normals.as_deref().unwrap_or(&[]);
+    let normals: Vec<[f32; 3]> = split
+        .source_vertex
+        .iter()
+        .filter_map(|&v| source_normals.get(v as usize).copied())
+        .collect();
+    let quantized = quantize::quantize_tangents(&split.vertex_tangents, &normals, snorm);
+    let count = split.vertex_tangents.len();
+    let r = changes.add_snorm(quantized.bytes, count, snorm, accessor::ElementType::Vec4);
+    (r, Some((snorm, quantized.max_added_degrees)))
+}
+
+/// A morph target's TANGENT deltas: in the base TANGENT's normalized type when every component
+/// fits in [-1, 1] (KHR_mesh_quantization allows it), else float.
+fn add_deltas(changes: &mut Changes, deltas: &[[f32; 3]], snorm: Option<Snorm>) -> Ref {
+    match snorm.and_then(|s| Some((s, quantize::quantize_deltas(deltas, s)?))) {
+        Some((snorm, bytes)) => {
+            changes.add_snorm(bytes, deltas.len(), snorm, accessor::ElementType::Vec3)
+        }
+        None => changes.add_floats(deltas, false),
+    }
+}
+
 /// The accessors one job adds, shared by every primitive that uses it.
 #[derive(Default)]
 struct JobRefs {
-    tangent: Option<Ref>,
+    /// The TANGENT accessor, and for a quantized one its type and the largest angle it added.
+    tangent: Option<(Ref, Option<(Snorm, f32)>)>,
     normal: Option<Ref>,
     indices: Option<Ref>,
     deltas: HashMap<usize, Ref>,
@@ -515,15 +574,16 @@ impl Edits {
         topology: Topology,
         job: usize,
         c: &Computed,
+        snorm: Option<Snorm>,
     ) -> Result<PrimitiveEdit, SceneError> {
         let split = &c.tangents.split;
         // Decoded accessors have no data in the file: the primitive's are all written anew.
         let keeps = c.keeps_vertices(topology) && !reads_decoded(primitive, scene.data.decoded);
         let refs = self.job_refs.entry(job).or_default();
         let changes = &mut self.changes;
-        let tangent = *refs
+        let (tangent, _) = *refs
             .tangent
-            .get_or_insert_with(|| changes.add_floats(&split.vertex_tangents, false));
+            .get_or_insert_with(|| add_tangents(changes, c, snorm));
         let mut edit = PrimitiveEdit {
             remove_draco: draco::extension(primitive).is_some(),
             ..PrimitiveEdit::default()
@@ -555,7 +615,7 @@ impl Edits {
             .unwrap_or(&[]);
         for (t, target) in targets.iter().enumerate() {
             edit.targets
-                .push(self.edit_target(scene, job, c, t, target, keeps)?);
+                .push(self.edit_target(scene, job, c, (t, target), keeps, snorm)?);
         }
         Ok(edit)
     }
@@ -567,9 +627,9 @@ impl Edits {
         scene: &Scene<'_>,
         job: usize,
         c: &Computed,
-        t: usize,
-        target: &Node,
+        (t, target): (usize, &Node),
         keeps: bool,
+        snorm: Option<Snorm>,
     ) -> Result<Vec<(String, Ref)>, SceneError> {
         let delta = c.target_deltas.get(t).and_then(Option::as_ref);
         let mut set = Vec::new();
@@ -585,7 +645,7 @@ impl Edits {
             let r = *refs
                 .deltas
                 .entry(t)
-                .or_insert_with(|| changes.add_floats(deltas, false));
+                .or_insert_with(|| add_deltas(changes, deltas, snorm));
             set.push(("TANGENT".into(), r));
         }
         Ok(set)

@@ -14,6 +14,7 @@ use super::accessor::{self, ComponentType, Data, ElementType};
 use super::created::{self, AccessorJson, Bounds, float_bound, integer_bound};
 use super::glb;
 use super::load::{Buffer, BufferSource, Container, Loaded, Resources};
+use super::quantize::Snorm;
 use super::refs::{self, Owner};
 use crate::scene::OutputFormat;
 use crate::scene::error::{ProblemCode, SceneError};
@@ -125,6 +126,36 @@ impl Changes {
             normalized: false,
             count: values.len(),
             min_max,
+        })
+    }
+
+    /// Normalized signed integer vectors (quantized TANGENT or its morph deltas), already
+    /// packed: `size` bytes per element, padded to `stride` when that differs.
+    pub fn add_snorm(
+        &mut self,
+        bytes: Vec<u8>,
+        count: usize,
+        snorm: Snorm,
+        element_type: ElementType,
+    ) -> Ref {
+        let component_type = match snorm {
+            Snorm::I8 => ComponentType::I8,
+            Snorm::I16 => ComponentType::I16,
+        };
+        let size = component_type.size() * element_type.components();
+        let stride = bytes.len().checked_div(count).unwrap_or(size);
+        let view = self.push_view(
+            bytes,
+            Some(ARRAY_BUFFER),
+            (stride != size).then_some(stride),
+        );
+        self.push_accessor(NewAccessor {
+            view,
+            component_type,
+            element_type,
+            normalized: true,
+            count,
+            min_max: None,
         })
     }
 
