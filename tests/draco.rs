@@ -200,6 +200,20 @@ fn draco_fixtures_round_trip_with_reference_tangents() {
             );
             continue;
         }
+        // The report says what happened to the sizes, and why.
+        assert!(summary.mesh_bytes_out.unwrap() > 0 && summary.mesh_bytes_in > 0);
+        for p in processed
+            .report
+            .primitives
+            .iter()
+            .filter(|p| p.action != "skipped")
+        {
+            let storage = p.storage.as_ref().unwrap();
+            assert_eq!(storage.compression_in, "draco", "{file}");
+            assert_eq!(storage.compression_out, Some("none"), "{file}");
+            assert!(storage.why.unwrap().contains("Draco"), "{file}");
+            assert!(storage.bytes_out.unwrap() > 0, "{file}");
+        }
         let bytes = processed.bytes.unwrap();
         assert_valid_output(&file, &bytes);
         let json = glb_json(&bytes);

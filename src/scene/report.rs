@@ -48,6 +48,10 @@ pub struct Summary {
     pub mirrored_uv_triangles: u64,
     /// Audited primitives whose tangents disagree with MikkTSpace (w or more than 1°).
     pub audits_disagreeing: u64,
+    /// Bytes of the buffer views the meshes read, compressed ones at their compressed size.
+    pub mesh_bytes_in: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh_bytes_out: Option<u64>,
 }
 
 #[derive(Clone, Debug, Default, Serialize)]
@@ -95,6 +99,9 @@ pub struct PrimitiveReport {
     pub morph_targets: Option<Box<MorphReport>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub audit: Option<Box<Audit>>,
+    /// How the primitive's geometry is stored, in and out.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub storage: Option<StorageReport>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
 }
@@ -143,6 +150,22 @@ pub struct FallbackReport {
 }
 
 /// Tangent deltas computed for morph targets.
+/// How a primitive's geometry is stored in the input and in the output, and what it takes.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct StorageReport {
+    /// `none`, `draco` or `meshopt`.
+    pub compression_in: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compression_out: Option<&'static str>,
+    /// Bytes of the buffer views the primitive reads (each once; compressed at compressed size).
+    pub bytes_in: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bytes_out: Option<u64>,
+    /// Why the compression changed, when it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub why: Option<&'static str>,
+}
+
 /// The component type of a written TANGENT, and for a quantized one what quantizing cost.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct TangentReport {

@@ -13,10 +13,11 @@ pub mod load;
 pub mod plan;
 pub mod quantize;
 pub mod refs;
+pub mod sizes;
 pub mod write;
 
 use crate::scene::error::{ProblemCode, SceneError};
-use crate::scene::report::{MorphReport, PrimitiveReport, Report, TangentReport};
+use crate::scene::report::{MorphReport, PrimitiveReport, Report, StorageReport, TangentReport};
 use crate::scene::{OutputFormat, Processed, SceneOptions, TangentType};
 use accessor::{Data, DecodedAccessors};
 use compute::{Computed, GeometryLimits};
@@ -101,6 +102,7 @@ pub fn process_with<'a>(
         resources,
         &mut report,
     )?;
+    report_storage(&mut report, root, bytes.as_deref(), options.format)?;
     Ok(Processed { bytes, report })
 }
 
@@ -537,6 +539,71 @@ fn add_deltas(changes: &mut Changes, deltas: &[[f32; 3]], snorm: Option<Snorm>) 
             changes.add_snorm(bytes, deltas.len(), snorm, accessor::ElementType::Vec3)
         }
         None => changes.add_floats(deltas, false),
+    }
+}
+
+/// Each primitive's storage in and out, and the scene's mesh bytes, from the input's document and
+/// (when written) the output's, which is parsed again: the sizes are what the files declare.
+fn report_storage(
+    report: &mut Report,
+    root: &Node,
+    output: Option<&[u8]>,
+    format: OutputFormat,
+) -> Result<(), SceneError> {
+    let before = sizes::measure(root);
+    let after = output
+        .map(|bytes| output_sizes(bytes, format))
+        .transpose()?;
+    report.summary.mesh_bytes_in = before.total;
+    report.summary.mesh_bytes_out = after.as_ref().map(|a| a.total);
+    for entry in &mut report.primitives {
+        let key = (entry.mesh, entry.primitive);
+        let Some(input) = before.primitives.get(&key) else {
+            continue;
+        };
+        let output = after.as_ref().and_then(|a| a.primitives.get(&key));
+        entry.storage = Some(StorageReport {
+            compression_in: input.compression.name(),
+            compression_out: output.map(|o| o.compression.name()),
+            bytes_in: input.bytes,
+            bytes_out: output.map(|o| o.bytes),
+            why: output.and_then(|o| why_storage_changed(input.compression, o.compression)),
+        });
+    }
+    Ok(())
+}
+
+fn output_sizes(bytes: &[u8], format: OutputFormat) -> Result<sizes::MeshSizes, SceneError> {
+    let json = match format {
+        OutputFormat::Glb => glb::parse(bytes).map(|g| g.json).map_err(|e| e.to_string()),
+        OutputFormat::GltfEmbedded => Ok(bytes),
+    };
+    let doc = json
+        .and_then(|j| tspace_json::Document::parse(j).map_err(|e| e.to_string()))
+        .map_err(|e| {
+            SceneError::new(
+                ProblemCode::Internal,
+                format!("tspace's own output does not parse again: {e}"),
+            )
+        })?;
+    Ok(sizes::measure(doc.root()))
+}
+
+fn why_storage_changed(
+    input: sizes::Compression,
+    output: sizes::Compression,
+) -> Option<&'static str> {
+    use sizes::Compression::{Draco, Meshopt, None};
+    match (input, output) {
+        (Draco, None) => Some(
+            "written out of Draco: the primitive changed, and encoding Draco again would quantize it again",
+        ),
+        (Draco, Meshopt) => Some(
+            "written out of Draco (encoding it again would quantize it again), with lossless meshopt compression",
+        ),
+        (Meshopt, None) => Some("written uncompressed"),
+        (None, Meshopt) => Some("compressed with meshopt, as compress=meshopt asks"),
+        _ => Option::None,
     }
 }
 

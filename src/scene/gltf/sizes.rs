@@ -1,0 +1,167 @@
+//! Mesh bytes: what a scene's geometry takes in its file, per primitive and in all, and how it is
+//! compressed, so that the report can say what tspace did to a pipeline's sizes.
+//!
+//! A primitive's bytes are those of every buffer view its accessors (attributes, indices, morph
+//! targets, sparse parts) and its Draco stream read, each view once; a meshopt-compressed view
+//! counts at its compressed size, which is what the file holds. The scene's total counts each
+//! view once, however many primitives share it. Images, animations and skins are not mesh bytes.
+
+use super::draco;
+use std::collections::{BTreeMap, BTreeSet};
+use tspace_json::Node;
+
+/// How a primitive's geometry is stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Compression {
+    None,
+    Draco,
+    Meshopt,
+}
+
+impl Compression {
+    pub fn name(self) -> &'static str {
+        match self {
+            Compression::None => "none",
+            Compression::Draco => "draco",
+            Compression::Meshopt => "meshopt",
+        }
+    }
+}
+
+/// One primitive's storage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PrimitiveSize {
+    pub compression: Compression,
+    pub bytes: u64,
+}
+
+/// A document's mesh storage.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct MeshSizes {
+    /// By `(mesh, primitive)`.
+    pub primitives: BTreeMap<(usize, usize), PrimitiveSize>,
+    pub total: u64,
+}
+
+/// Measures the mesh storage a document declares (lengths from the JSON; no bytes are read).
+pub fn measure(root: &Node) -> MeshSizes {
+    let views = root
+        .get("bufferViews")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let mut sizes = MeshSizes::default();
+    let mut all_views = BTreeSet::new();
+    for (m, mesh) in array(root.get("meshes")).iter().enumerate() {
+        for (p, primitive) in array(mesh.get("primitives")).iter().enumerate() {
+            let used = primitive_views(root, primitive);
+            let meshopt = used.iter().any(|&v| meshopt_length(views.get(v)).is_some());
+            let compression = if draco::extension(primitive).is_some() {
+                Compression::Draco
+            } else if meshopt {
+                Compression::Meshopt
+            } else {
+                Compression::None
+            };
+            let bytes = used.iter().map(|&v| view_bytes(views.get(v))).sum();
+            sizes
+                .primitives
+                .insert((m, p), PrimitiveSize { compression, bytes });
+            all_views.extend(used);
+        }
+    }
+    sizes.total = all_views.iter().map(|&v| view_bytes(views.get(v))).sum();
+    sizes
+}
+
+fn array(node: Option<&Node>) -> &[Node] {
+    node.and_then(Node::as_array).unwrap_or(&[])
+}
+
+fn index(node: Option<&Node>) -> Option<usize> {
+    node?.as_u64().and_then(|i| usize::try_from(i).ok())
+}
+
+/// The views a primitive reads: its accessors' (and their sparse parts'), and its Draco stream's.
+fn primitive_views(root: &Node, primitive: &Node) -> BTreeSet<usize> {
+    let accessors = array(root.get("accessors"));
+    let mut members: Vec<usize> = Vec::new();
+    let mut add_object = |object: Option<&Node>| {
+        for member in object.and_then(Node::as_object).unwrap_or(&[]) {
+            members.extend(index(Some(&member.value)));
+        }
+    };
+    add_object(primitive.get("attributes"));
+    for target in array(primitive.get("targets")) {
+        add_object(Some(target));
+    }
+    members.extend(index(primitive.get("indices")));
+    let mut views = BTreeSet::new();
+    for accessor in members.into_iter().filter_map(|a| accessors.get(a)) {
+        views.extend(index(accessor.get("bufferView")));
+        if let Some(sparse) = accessor.get("sparse") {
+            for part in ["indices", "values"] {
+                views.extend(index(sparse.get(part).and_then(|p| p.get("bufferView"))));
+            }
+        }
+    }
+    views.extend(index(
+        draco::extension(primitive).and_then(|e| e.get("bufferView")),
+    ));
+    views
+}
+
+/// A meshopt-compressed view's compressed length.
+fn meshopt_length(view: Option<&Node>) -> Option<u64> {
+    let extensions = view?.get("extensions")?;
+    ["EXT_meshopt_compression", "KHR_meshopt_compression"]
+        .iter()
+        .find_map(|name| extensions.get(name)?.get("byteLength")?.as_u64())
+}
+
+/// What a view takes in the file: its compressed length when meshopt-compressed.
+fn view_bytes(view: Option<&Node>) -> u64 {
+    meshopt_length(view)
+        .or_else(|| view?.get("byteLength")?.as_u64())
+        .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tspace_json::Document;
+
+    #[test]
+    fn shared_views_count_once_in_the_total_and_compressed_views_at_their_compressed_size() {
+        let text = br#"{
+            "bufferViews": [
+                {"buffer": 0, "byteLength": 100},
+                {"buffer": 1, "byteLength": 400, "extensions": {"EXT_meshopt_compression":
+                    {"buffer": 0, "byteLength": 40, "byteStride": 4, "count": 100, "mode": "ATTRIBUTES"}}},
+                {"buffer": 0, "byteLength": 7},
+                {"buffer": 0, "byteLength": 1000}
+            ],
+            "accessors": [
+                {"bufferView": 0, "componentType": 5126, "count": 1, "type": "VEC3"},
+                {"bufferView": 1, "componentType": 5126, "count": 1, "type": "VEC3"},
+                {"componentType": 5126, "count": 1, "type": "VEC3"}
+            ],
+            "meshes": [{"primitives": [
+                {"attributes": {"POSITION": 0}},
+                {"attributes": {"POSITION": 0, "NORMAL": 1}},
+                {"attributes": {"POSITION": 2},
+                 "extensions": {"KHR_draco_mesh_compression": {"bufferView": 2, "attributes": {"POSITION": 0}}}}
+            ]}]
+        }"#;
+        let doc = Document::parse(text).unwrap();
+        let sizes = measure(doc.root());
+        let at = |p| sizes.primitives[&(0, p)];
+        assert_eq!((at(0).compression, at(0).bytes), (Compression::None, 100));
+        assert_eq!(
+            (at(1).compression, at(1).bytes),
+            (Compression::Meshopt, 140)
+        );
+        assert_eq!((at(2).compression, at(2).bytes), (Compression::Draco, 7));
+        // View 3 is no mesh's.
+        assert_eq!(sizes.total, 147);
+    }
+}
