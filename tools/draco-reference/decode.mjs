@@ -24,6 +24,8 @@
 //
 // Buffers: the GLB BIN chunk, data: URIs (base64), and relative files next to the input.
 //
+// `node decode.mjs --time ROUNDS FILE` times the decode alone instead (benches/compression.rs).
+//
 // Exit status: 0 when the file was read and parsed (whatever the primitives' errors); 1 when the
 // file itself could not be read or parsed (message on stderr, nothing on stdout); 2 on bad usage.
 //
@@ -43,7 +45,7 @@ const COMPONENTS = { SCALAR: 1, VEC2: 2, VEC3: 3, VEC4: 4, MAT2: 4, MAT3: 9, MAT
 const NEG_ZERO = '\u0000tspace-negative-zero\u0000';
 
 function usage() {
-    process.stderr.write('usage: decode.mjs FILE.glb|FILE.gltf\n');
+    process.stderr.write('usage: decode.mjs FILE.glb|FILE.gltf | decode.mjs --time ROUNDS FILE\n');
     process.exit(2);
 }
 
@@ -200,7 +202,65 @@ function decodePrimitive(json, buffer, prim, ext) {
     }
 }
 
+/// The decode alone, for timing: the stream decoded, the triangles and every attribute copied
+/// out in the accessor's type (as tspace's decoder delivers them), nothing converted to JSON.
+function decodeOnly(json, buffer, prim, ext) {
+    const decoder = new M.Decoder();
+    const dbuf = new M.DecoderBuffer();
+    const geometry = new M.Mesh();
+    try {
+        const data = viewBytes(json, buffer, ext.bufferView);
+        dbuf.Init(data, data.byteLength);
+        const status = decoder.DecodeBufferToMesh(dbuf, geometry);
+        if (!status.ok()) throw new Error(`Draco decode failed: ${status.error_msg()}`);
+        const n = geometry.num_faces() * 3;
+        let ptr = M._malloc(n * 4);
+        decoder.GetTrianglesUInt32Array(geometry, n * 4, ptr);
+        fromHeap(Uint32Array, ptr, n);
+        M._free(ptr);
+        for (const [semantic, uid] of Object.entries(ext.attributes || {})) {
+            const [dt, Arr] = TYPES[json.accessors[prim.attributes[semantic]].componentType];
+            const attr = decoder.GetAttributeByUniqueId(geometry, uid);
+            const count = geometry.num_points() * attr.num_components();
+            ptr = M._malloc(count * Arr.BYTES_PER_ELEMENT);
+            decoder.GetAttributeDataArrayForAllPoints(geometry, attr, dt, count * Arr.BYTES_PER_ELEMENT, ptr);
+            fromHeap(Arr, ptr, count);
+            M._free(ptr);
+        }
+    } finally {
+        M.destroy(geometry);
+        M.destroy(dbuf);
+        M.destroy(decoder);
+    }
+}
+
 const args = process.argv.slice(2);
+// `--time ROUNDS FILE`: decode every Draco primitive of FILE ROUNDS times (after one untimed
+// round) and print {"rounds", "median_ms", "min_ms"} for one whole-file decode.
+if (args[0] === '--time') {
+    const rounds = Number(args[1]);
+    if (args.length !== 3 || !(rounds >= 1)) usage();
+    const doc = readDocument(args[2]);
+    const buffer = bufferLoader(args[2], doc.json, doc.bin);
+    const prims = [];
+    for (const mesh of doc.json.meshes || []) {
+        for (const prim of mesh.primitives || []) {
+            const ext = prim.extensions && prim.extensions.KHR_draco_mesh_compression;
+            if (ext) prims.push([prim, ext]);
+        }
+    }
+    const once = () => prims.forEach(([prim, ext]) => decodeOnly(doc.json, buffer, prim, ext));
+    once();
+    const times = [];
+    for (let r = 0; r < rounds; r++) {
+        const start = process.hrtime.bigint();
+        once();
+        times.push(Number(process.hrtime.bigint() - start) / 1e6);
+    }
+    times.sort((a, b) => a - b);
+    process.stdout.write(JSON.stringify({ rounds, median_ms: times[Math.floor(rounds / 2)], min_ms: times[0] }) + '\n');
+    process.exit(0);
+}
 if (args.length !== 1 || args[0].startsWith('-')) usage();
 const file = args[0];
 
