@@ -282,3 +282,60 @@ fn a_stream_over_the_requests_limits_is_refused_before_it_is_decoded() {
         assert!(error.message.contains("meshes[0].primitives[0]"), "{error}");
     }
 }
+
+#[test]
+fn a_changed_primitive_leaves_draco_and_its_neighbour_keeps_its_stream() {
+    // MorphPrimitivesTest: two Draco primitives with a morph target each. Give the first a normal
+    // map: it gets tangents (and deltas) and is written out of Draco; the second is left alone
+    // and keeps its stream byte for byte, so the file still requires the extension.
+    let input =
+        std::fs::read(workspace_root().join("fixtures/compressed/MorphPrimitivesTest_draco.glb"))
+            .unwrap();
+    let parsed = tspace::scene::gltf::glb::parse(&input).unwrap();
+    let mut doc: Value = serde_json::from_slice(parsed.json).unwrap();
+    doc["materials"][0]["normalTexture"] = serde_json::json!({"index": 0});
+    doc["textures"] = serde_json::json!([{"source": 0}]);
+    doc["images"] = serde_json::json!([{"uri": "data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDwAEhQGAhKmMIQAAAABJRU5ErkJggg=="}]);
+    let edited =
+        tspace::scene::gltf::glb::write(&serde_json::to_vec(&doc).unwrap(), parsed.bin, &[])
+            .unwrap();
+    let stream = |json: &Value, bin: &[u8], primitive: usize| -> Vec<u8> {
+        let ext = &json["meshes"][0]["primitives"][primitive]["extensions"][draco::EXTENSION];
+        let view = &json["bufferViews"][ext["bufferView"].as_u64().unwrap() as usize];
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+        bin[start..start + view["byteLength"].as_u64().unwrap() as usize].to_vec()
+    };
+    let kept = stream(&doc, parsed.bin.unwrap(), 1);
+
+    let processed = process(&edited, &NoResources, &SceneOptions::default()).unwrap();
+    let actions: Vec<_> = processed
+        .report
+        .primitives
+        .iter()
+        .map(|p| p.action)
+        .collect();
+    assert_eq!(actions, ["generated", "skipped"]);
+    let storage: Vec<_> = processed
+        .report
+        .primitives
+        .iter()
+        .map(|p| p.storage.as_ref().unwrap().compression_out.unwrap())
+        .collect();
+    assert_eq!(storage, ["none", "draco"]);
+    let bytes = processed.bytes.unwrap();
+    assert_valid_output("MorphPrimitivesTest_draco mixed", &bytes);
+    let out = tspace::scene::gltf::glb::parse(&bytes).unwrap();
+    let json: Value = serde_json::from_slice(out.json).unwrap();
+    assert!(
+        json["extensionsRequired"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e == draco::EXTENSION)
+    );
+    let first = &json["meshes"][0]["primitives"][0];
+    assert!(first["extensions"].get(draco::EXTENSION).is_none());
+    assert!(first["attributes"]["TANGENT"].is_u64());
+    assert!(first["targets"][0]["TANGENT"].is_u64());
+    assert_eq!(stream(&json, out.bin.unwrap(), 1), kept);
+}
