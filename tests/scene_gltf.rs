@@ -724,23 +724,29 @@ fn required_meshopt_compression_is_decoded() {
     let bytes = done.bytes.unwrap();
     assert_valid("meshopt.glb", &bytes);
 
-    // The new TANGENT accessor is plain data in the BIN chunk: read it and compare with the
-    // core on the uncompressed quad.
+    // The output is meshopt-compressed too (compress=auto): read the new TANGENT accessor back
+    // through the loader, which decodes it, and compare with the core on the uncompressed quad.
     let json = glb_json(&bytes);
     let tangent = json["meshes"][0]["primitives"][0]["attributes"]["TANGENT"]
         .as_u64()
         .unwrap() as usize;
     let view =
         &json["bufferViews"][json["accessors"][tangent]["bufferView"].as_u64().unwrap() as usize];
-    let offset = view["byteOffset"].as_u64().unwrap() as usize;
-    let blob = tspace::scene::gltf::glb::parse(&bytes)
-        .unwrap()
-        .bin
-        .unwrap();
-    let got: Vec<f32> = blob[offset..offset + 64]
-        .chunks(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
+    assert!(view["extensions"]["EXT_meshopt_compression"].is_object());
+    let limits = tspace::scene::gltf::load::LoadLimits {
+        max_buffer_bytes: 1 << 20,
+    };
+    let loaded = tspace::scene::gltf::load::load(&bytes, &NoResources, &limits).unwrap();
+    let got: Vec<f32> = tspace::scene::gltf::accessor::read_floats_json::<4>(
+        loaded.doc.root(),
+        tangent,
+        &loaded.buffer_slices(),
+        4,
+    )
+    .unwrap()
+    .into_iter()
+    .flatten()
+    .collect();
     let positions: Vec<[f32; 3]> = QUAD_POSITIONS
         .chunks(3)
         .map(|c| [c[0], c[1], c[2]])

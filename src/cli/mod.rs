@@ -10,6 +10,7 @@ mod paths;
 
 use crate::config::ServeArgs;
 use crate::scene::options::Choices;
+use crate::scene::options::Compression;
 use crate::scene::{OutputFormat, SceneOptions, TangentType};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, CommandFactory, Parser, Subcommand};
@@ -109,6 +110,9 @@ struct SceneArgs {
     /// The TANGENT's component type.
     #[arg(long, value_parser = choice::<TangentType>(), default_value = "auto")]
     tangents: TangentType,
+    /// How the written geometry is stored (EXT_meshopt_compression or not).
+    #[arg(long, value_parser = choice::<Compression>(), default_value = "auto")]
+    compress: Compression,
 }
 
 impl SceneArgs {
@@ -121,6 +125,7 @@ impl SceneArgs {
             format,
             write,
             tangents: self.tangents,
+            compress: self.compress,
             ..SceneOptions::default()
         }
     }

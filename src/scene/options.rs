@@ -104,6 +104,42 @@ impl FromStr for TangentType {
     }
 }
 
+/// How the geometry tspace writes is stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Compression {
+    /// Compressed (`EXT_meshopt_compression`) when the input used meshopt compression, else the
+    /// input's own layout.
+    #[default]
+    Auto,
+    /// Uncompressed: meshopt-compressed views of the input are written out as plain data.
+    None,
+    /// `EXT_meshopt_compression`, whatever the input.
+    Meshopt,
+}
+
+impl Compression {
+    pub const ALL: [Compression; 3] = [Compression::Auto, Compression::None, Compression::Meshopt];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Compression::Auto => "auto",
+            Compression::None => "none",
+            Compression::Meshopt => "meshopt",
+        }
+    }
+}
+
+impl FromStr for Compression {
+    type Err = Expected;
+
+    fn from_str(name: &str) -> Result<Compression, Expected> {
+        Compression::ALL
+            .into_iter()
+            .find(|c| c.name() == name)
+            .ok_or(Expected("auto, none or meshopt"))
+    }
+}
+
 /// A value outside the accepted ones; the message says what is accepted (callers add which
 /// value was given, and where).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -176,6 +212,25 @@ impl Choices for TangentType {
     }
 }
 
+impl Choices for Compression {
+    fn choices() -> Vec<Choice> {
+        Compression::ALL
+            .into_iter()
+            .map(|c| Choice {
+                name: c.name(),
+                aliases: &[],
+                help: match c {
+                    Compression::Auto => {
+                        "EXT_meshopt_compression when the input used meshopt, else the input's layout"
+                    }
+                    Compression::None => "Uncompressed: meshopt views of the input written out plain",
+                    Compression::Meshopt => "EXT_meshopt_compression, whatever the input",
+                },
+            })
+            .collect()
+    }
+}
+
 impl Choices for OutputFormat {
     fn choices() -> Vec<Choice> {
         OutputFormat::ALL
@@ -209,6 +264,8 @@ pub struct SceneOptions {
     pub write: bool,
     /// The TANGENT's component type.
     pub tangents: TangentType,
+    /// How the written geometry is stored.
+    pub compress: Compression,
     pub limits: SceneLimits,
 }
 
@@ -222,6 +279,7 @@ impl Default for SceneOptions {
             normal_mode: NormalMode::Flat,
             write: true,
             tangents: TangentType::Auto,
+            compress: Compression::Auto,
             limits: SceneLimits::default(),
         }
     }
@@ -273,7 +331,7 @@ type Setter = fn(&mut SceneOptions, &str) -> Result<(), String>;
 
 /// Every option [`SceneOptions::set`] takes, by the name the query string gives it, with its
 /// parser: the one list that both the setter and the "unknown option" message read.
-const SETTERS: [(&str, Setter); 5] = [
+const SETTERS: [(&str, Setter); 6] = [
     ("method", |o, v| {
         o.method = v
             .parse()
@@ -294,6 +352,10 @@ const SETTERS: [(&str, Setter); 5] = [
     }),
     ("tangents", |o, v| {
         o.tangents = v.parse().map_err(|e: Expected| e.to_string())?;
+        Ok(())
+    }),
+    ("compress", |o, v| {
+        o.compress = v.parse().map_err(|e: Expected| e.to_string())?;
         Ok(())
     }),
 ];
@@ -349,6 +411,7 @@ mod tests {
         choices_parse_back::<Method>(Method::name);
         choices_parse_back::<OutputFormat>(OutputFormat::name);
         choices_parse_back::<TangentType>(TangentType::name);
+        choices_parse_back::<Compression>(Compression::name);
     }
 
     #[test]
@@ -359,12 +422,14 @@ mod tests {
             ("overwrite", ""),
             ("all", "no"),
             ("format", "gltf"),
+            ("compress", "meshopt"),
         ] {
             options.set(key, value).unwrap();
         }
         assert_eq!(options.method, Method::MikkTSpace);
         assert!(options.overwrite && !options.all);
         assert_eq!(options.format, OutputFormat::GltfEmbedded);
+        assert_eq!(options.compress, Compression::Meshopt);
         let mut message = |key, value| options.set(key, value).unwrap_err().to_string();
         assert_eq!(
             message("method", "magic"),
@@ -379,8 +444,12 @@ mod tests {
             "format=\"fbx\": expected glb or gltf"
         );
         assert_eq!(
+            message("compress", "zip"),
+            "compress=\"zip\": expected auto, none or meshopt"
+        );
+        assert_eq!(
             message("colour", "red"),
-            "unknown option \"colour\"; the options are method, overwrite, all, format and tangents"
+            "unknown option \"colour\"; the options are method, overwrite, all, format, tangents and compress"
         );
     }
 }

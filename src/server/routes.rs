@@ -322,6 +322,7 @@ fn wants_multipart(headers: &HeaderMap) -> bool {
         ("all" = Option<bool>, Query, description = "give tangents to every triangle primitive, whatever its material"),
         ("format" = Option<String>, Query, description = "glb (default) or gltf (JSON with an embedded buffer)"),
         ("tangents" = Option<String>, Query, description = "auto (default: normalized byte or short where NORMAL is quantized, else float) or float"),
+        ("compress" = Option<String>, Query, description = "auto (default: EXT_meshopt_compression when the input used meshopt compression, else the input's own layout), none (everything uncompressed) or meshopt (EXT_meshopt_compression whatever the input)"),
     ),
     request_body(
         description = "A GLB, a .gltf or an OBJ (model/gltf-binary, model/gltf+json, model/obj, or sniffed), or multipart/form-data with the scene (part `file`) and its buffers, images and MTL as parts named by file name.",

@@ -78,6 +78,7 @@ fn scene_options(data: &[u8]) -> SceneOptions {
         } else {
             TangentType::Auto
         },
+        compress: Default::default(),
         limits: LIMITS,
     }
 }

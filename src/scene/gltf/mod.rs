@@ -482,7 +482,7 @@ fn write_scene<'a>(
         // Nothing to change: the input is the output, byte for byte.
         bytes.to_vec()
     } else {
-        let written = write::write(loaded, changes, options.format, resources)?;
+        let written = write::write(loaded, changes, options.format, options.compress, resources)?;
         report.input_bytes += written.embedded_image_bytes;
         report.dropped = written.dropped;
         report.warnings.extend(written.warnings);

@@ -9,6 +9,14 @@
 //! is renumbered. That happens only when every extension in use is one whose references tspace
 //! knows ([`super::refs::KNOWN_EXTENSIONS`]) and the file is not meshopt-compressed; otherwise
 //! every byte and index stays where it was and the report says why.
+//!
+//! With `EXT_meshopt_compression` in or out ([`compress::Output`]), the views are copied one by
+//! one instead: compressed views keep their compressed bytes (moved, never re-encoded) and get
+//! a new place in the one fallback buffer; the views tspace writes are encoded
+//! ([`compress::encode`]); with `compress=none` every compressed view is written out decoded.
+//! Orphans are then dropped in meshopt files too.
+
+pub mod compress;
 
 use super::accessor::{self, ComponentType, Data, ElementType};
 use super::created::{self, AccessorJson, Bounds, float_bound, integer_bound};
@@ -18,8 +26,11 @@ use super::quantize::Snorm;
 use super::refs::{self, Owner};
 use crate::scene::OutputFormat;
 use crate::scene::error::{ProblemCode, SceneError};
+use crate::scene::options::Compression;
 use crate::scene::report::Dropped;
 use crate::scene::uri;
+use compress::{Encoded, Output, Prefiltered, Shape};
+use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
 use tspace_json::{self as json, Document, Editor, Node};
 
@@ -37,6 +48,10 @@ struct NewView {
     data: Vec<u8>,
     target: Option<u32>,
     byte_stride: Option<usize>,
+    /// What the data is, for the meshopt encoder.
+    shape: Shape,
+    /// For a copy of a filtered meshopt view: the input's pre-filter values, copied alike.
+    prefiltered: Option<Prefiltered>,
 }
 
 struct NewAccessor {
@@ -76,11 +91,14 @@ impl Changes {
         data: Vec<u8>,
         target: Option<u32>,
         byte_stride: Option<usize>,
+        shape: Shape,
     ) -> usize {
         self.views.push(NewView {
             data,
             target,
             byte_stride,
+            shape,
+            prefiltered: None,
         });
         self.views.len() - 1
     }
@@ -112,7 +130,12 @@ impl Changes {
             let list = |a: [f32; N]| a.iter().map(|&x| float_bound(x)).collect();
             (list(lo), list(hi))
         });
-        let view = self.push_view(data, Some(ARRAY_BUFFER), None);
+        let view = self.push_view(
+            data,
+            Some(ARRAY_BUFFER),
+            None,
+            Shape::Vertex { stride: N * 4 },
+        );
         let element_type = match N {
             2 => ElementType::Vec2,
             3 => ElementType::Vec3,
@@ -148,6 +171,7 @@ impl Changes {
             bytes,
             Some(ARRAY_BUFFER),
             (stride != size).then_some(stride),
+            Shape::Vertex { stride },
         );
         self.push_accessor(NewAccessor {
             view,
@@ -175,7 +199,16 @@ impl Changes {
             }
             (ComponentType::U32, data)
         };
-        let view = self.push_view(data, Some(ELEMENT_ARRAY_BUFFER), None);
+        let size = component_type.size();
+        let view = self.push_view(
+            data,
+            Some(ELEMENT_ARRAY_BUFFER),
+            None,
+            Shape::Index {
+                size,
+                triangles: true,
+            },
+        );
         self.push_accessor(NewAccessor {
             view,
             component_type,
@@ -198,6 +231,7 @@ impl Changes {
         max_elements: usize,
         is_position: bool,
     ) -> Result<Ref, SceneError> {
+        let data_source = data;
         let described = data
             .accessor(root, index)
             .map_err(super::compute::accessor_error)?;
@@ -232,7 +266,14 @@ impl Changes {
                 )
             })
             .flatten();
-        let view = self.push_view(data, Some(ARRAY_BUFFER), (stride != size).then_some(stride));
+        let view = self.push_view(
+            data,
+            Some(ARRAY_BUFFER),
+            (stride != size).then_some(stride),
+            Shape::Vertex { stride },
+        );
+        self.views[view].prefiltered =
+            prefiltered_copy(root, data_source, index, source, size, stride);
         Ok(self.push_accessor(NewAccessor {
             view,
             component_type: described.component_type,
@@ -242,6 +283,57 @@ impl Changes {
             min_max,
         }))
     }
+}
+
+/// When accessor `index` reads a meshopt view stored with a filter (one element per stride, from
+/// the view's start), its pre-filter values copied like the elements (`source`), padding zeroed:
+/// encoding these with the same filter gives exactly the copied bytes, where the filter keeps
+/// padding as stored (octahedral's fourth component). `None` in every other case.
+fn prefiltered_copy(
+    root: &Node,
+    data: Data<'_>,
+    index: usize,
+    source: &[u32],
+    size: usize,
+    stride: usize,
+) -> Option<Prefiltered> {
+    let accessor = root.get("accessors")?.index(index)?;
+    if accessor.get("sparse").is_some() || usize_of(accessor.get("byteOffset")) != 0 {
+        return None;
+    }
+    let v = usize::try_from(accessor.get("bufferView")?.as_u64()?).ok()?;
+    let (_, ext) = compress::extension(root.get("bufferViews")?.index(v)?)?;
+    let filter = tspace_meshopt::Filter::from_name(ext.get("filter")?.as_str()?).ok()?;
+    let mode = tspace_meshopt::Mode::from_name(ext.get("mode")?.as_str()?).ok()?;
+    let count = usize_of(ext.get("count"));
+    if filter == tspace_meshopt::Filter::None
+        || mode != tspace_meshopt::Mode::Attributes
+        || usize_of(ext.get("byteStride")) != stride
+    {
+        return None;
+    }
+    let (buffer, offset, length) = compress::compressed_range(ext)?;
+    let compressed = data
+        .buffers
+        .get(buffer)?
+        .get(offset..offset.checked_add(length)?)?;
+    let pre = tspace_meshopt::decode(
+        &tspace_meshopt::Compressed {
+            data: compressed,
+            count,
+            byte_stride: stride,
+            mode,
+            filter: tspace_meshopt::Filter::None,
+        },
+        count.checked_mul(stride)?,
+    )
+    .ok()?;
+    let mut bytes = vec![0u8; source.len() * stride];
+    for (slot, &s) in bytes.chunks_exact_mut(stride).zip(source) {
+        let at = (s as usize).checked_mul(stride)?;
+        slot[..size].copy_from_slice(pre.get(at..at + size)?);
+    }
+    Some(Prefiltered { bytes, filter })
 }
 
 /// Per-component minimum and maximum of vector or scalar elements, in the component type's own
@@ -309,6 +401,9 @@ pub struct Written {
     pub embedded_image_bytes: u64,
     pub dropped: Dropped,
     pub warnings: Vec<String>,
+    /// Every view the output stores with meshopt compression that this write encoded:
+    /// `(output view index, mode, filter)`, the filter `None` when there is none.
+    pub compressed_views: Vec<(usize, &'static str, Option<&'static str>)>,
 }
 
 fn edit_error(error: json::EditError) -> SceneError {
@@ -351,9 +446,11 @@ pub fn write(
     loaded: &Loaded<'_>,
     changes: &Changes,
     format: OutputFormat,
+    compression: Compression,
     resources: &dyn Resources<'_>,
 ) -> Result<Written, SceneError> {
     let root = loaded.doc.root();
+    let output = compress::resolve(compression, root);
     let mut warnings = Vec::new();
     let references = References::of(root);
     let orphans = Orphans::find(root, &references, changes);
@@ -367,13 +464,24 @@ pub fn write(
         OutputFormat::Glb => embed_images(root, resources, &mut warnings),
         OutputFormat::GltfEmbedded => Images::default(),
     };
-    let layout = lay_out_buffer(root, &buffers, &numbering, changes, &images, format)?;
+    let layout = match output {
+        Output::Keep => lay_out_buffer(root, &buffers, &numbering, changes, &images, format)?,
+        _ => {
+            let recompress = compression == Compression::Meshopt;
+            lay_out_packed(
+                root, &buffers, &numbering, changes, &images, output, recompress,
+            )?
+        }
+    };
 
     let mut editor = Editor::new(&loaded.doc);
     drop_accessors(&mut editor, root, &numbering)?;
     renumber_view_refs(&mut editor, &references, &numbering, changes)?;
     append_accessors(&mut editor, root, &numbering, changes)?;
-    edit_buffer_views(&mut editor, root, &buffers, &numbering, &layout)?;
+    match &layout.packed {
+        None => edit_buffer_views(&mut editor, root, &buffers, &numbering, &layout)?,
+        Some(packed) => edit_buffer_views_packed(&mut editor, root, &numbering, packed)?,
+    }
     append_buffer_views(&mut editor, root, changes, &images, &layout)?;
     renumber_accessor_refs(&mut editor, &references, &numbering, changes)?;
     edit_primitives(&mut editor, root, &numbering, changes, &mut warnings)?;
@@ -383,14 +491,38 @@ pub fn write(
         &images,
         numbering.kept_views + changes.views.len(),
     )?;
-    edit_buffers(
-        &mut editor,
-        loaded,
-        &buffers,
-        &layout,
-        format,
-        &mut warnings,
-    )?;
+    match &layout.packed {
+        None => edit_buffers(
+            &mut editor,
+            loaded,
+            &buffers,
+            &layout,
+            format,
+            &mut warnings,
+        )?,
+        Some(packed) => {
+            edit_buffers_packed(
+                &mut editor,
+                loaded,
+                &buffers,
+                &layout,
+                format,
+                &mut warnings,
+            )?;
+            list_meshopt(&mut editor, root, packed)?;
+        }
+    }
+    let compressed_views = layout
+        .packed
+        .as_ref()
+        .map(|p| p.compressed_views(&numbering))
+        .unwrap_or_default();
+    if !compressed_views.is_empty() {
+        warnings.push(describe_compression(
+            &compressed_views,
+            layout.packed.as_ref(),
+        ));
+    }
     let json_text = editor.render().map_err(edit_error)?;
 
     let bytes = emit(loaded, json_text, &layout, format)?;
@@ -404,6 +536,7 @@ pub fn write(
         embedded_image_bytes: images.external_bytes,
         dropped,
         warnings,
+        compressed_views,
     })
 }
 
@@ -534,25 +667,17 @@ fn reference_dies(owner: Owner, changes: &Changes, orphan_accessor: &[bool]) -> 
 }
 
 /// Whether the orphans may be dropped (`Ok(false)` when there are none). They stay, and the
-/// error says why for the report, when an extension tspace does not know might refer to them,
-/// or when meshopt-compressed views, which tspace does not move, are in the file.
+/// error says why for the report, when an extension tspace does not know might refer to them.
 fn may_drop_orphans(root: &Node, orphans: &Orphans) -> Result<bool, String> {
     if orphans.count() == 0 {
         return Ok(false);
     }
-    let meshopt = root
-        .get("extensionsUsed")
-        .and_then(Node::as_array)
-        .unwrap_or(&[])
-        .iter()
-        .any(|e| e.as_str() == Some("EXT_meshopt_compression"));
-    if meshopt {
-        return Err(
-            "the file uses EXT_meshopt_compression, whose compressed data tspace does not move"
-                .into(),
-        );
-    }
-    let unknown = refs::unknown_extensions(root);
+    // The meshopt extensions refer to buffers, never to accessors or views, and the packed
+    // layout moves their compressed bytes and fallback ranges.
+    let unknown: Vec<String> = refs::unknown_extensions(root)
+        .into_iter()
+        .filter(|e| e != compress::EXT && e != compress::KHR)
+        .collect();
     if !unknown.is_empty() {
         return Err(format!(
             "the file uses {}, which may refer to accessors or buffer views in ways tspace does not know",
@@ -732,6 +857,8 @@ struct Layout {
     new_view_offsets: Vec<usize>,
     /// Whether the output has a buffer with data (a GLB's BIN chunk).
     bin_needed: bool,
+    /// With meshopt in or out: where each view went, view by view.
+    packed: Option<Packed>,
 }
 
 /// Old data first (only the kept views when orphans are dropped, else every buffer whole),
@@ -782,6 +909,7 @@ fn lay_out_buffer(
         view_position,
         new_view_offsets,
         bin_needed,
+        packed: None,
     })
 }
 
@@ -970,8 +1098,19 @@ fn append_buffer_views(
         .iter()
         .map(|v| (v.data.len(), v.target, v.byte_stride))
         .chain(images.data.iter().map(|d| (d.len(), None, None)));
-    for ((length, target, stride), &offset) in new_views.zip(&layout.new_view_offsets) {
-        let text = created::buffer_view(offset, length, stride, target)?;
+    for (i, ((length, target, stride), &offset)) in
+        new_views.zip(&layout.new_view_offsets).enumerate()
+    {
+        let compressed = layout.packed.as_ref().and_then(|p| {
+            let encoded = p.new_encoded.get(i)?.as_ref()?;
+            Some((encoded, *p.new_fallback.get(i)?))
+        });
+        let text = match compressed {
+            None => created::buffer_view(offset, length, stride, target)?,
+            Some((encoded, fallback)) => {
+                compressed_view_json(fallback, length, stride, target, encoded, offset)
+            }
+        };
         editor
             .push_to_array_member(root, "bufferViews", text)
             .map_err(edit_error)?;
@@ -1440,4 +1579,660 @@ mod tests {
         assert_eq!(sniff_image(&[0xFF, 0xD8, 0xFF, 0xE0]), Some("image/jpeg"));
         assert_eq!(sniff_image(b"GIF89a"), None);
     }
+}
+
+/// Where one input view goes in a packed write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Placed {
+    /// Dropped (or, for a view in no buffer tspace knows, left as it is).
+    Nowhere,
+    /// Plain bytes at this offset of buffer 0; a meshopt extension it had is removed.
+    Data(usize),
+    /// Compressed: its own range at `fallback` in the fallback buffer, its compressed bytes at
+    /// `data` in buffer 0; `fresh` when this write encoded it (an index into
+    /// [`Packed::fresh`]), else its extension's bytes were copied as they were.
+    Compressed {
+        fallback: usize,
+        data: usize,
+        fresh: Option<usize>,
+    },
+}
+
+/// The view-by-view layout used when meshopt compression is in the input or asked for.
+struct Packed {
+    output: Output,
+    /// Per input view.
+    old: Vec<Placed>,
+    /// Input views this write compressed (`compress=meshopt` on plain views): `(view, encoding)`.
+    fresh: Vec<(usize, Encoded)>,
+    /// Per new view of the changes: its encoding, when compressed.
+    new_encoded: Vec<Option<Encoded>>,
+    /// Per new view: its range's offset in the fallback buffer (0 when not compressed).
+    new_fallback: Vec<usize>,
+    /// The fallback buffer's length; 0 when the output has none.
+    fallback_length: usize,
+}
+
+impl Packed {
+    /// The output buffer index of the fallback buffer (after the data buffer).
+    const FALLBACK: usize = 1;
+
+    fn compressed_views(
+        &self,
+        numbering: &Numbering,
+    ) -> Vec<(usize, &'static str, Option<&'static str>)> {
+        let entry = |view: usize, e: &Encoded| {
+            let filter = (e.filter != tspace_meshopt::Filter::None).then(|| e.filter.name());
+            (view, e.mode.name(), filter)
+        };
+        let mut list: Vec<_> = self
+            .fresh
+            .iter()
+            .map(|(v, e)| entry(numbering.view(*v), e))
+            .collect();
+        list.extend(
+            self.new_encoded
+                .iter()
+                .enumerate()
+                .filter_map(|(i, e)| Some(entry(numbering.kept_views + i, e.as_ref()?))),
+        );
+        list
+    }
+
+    fn uses_extension(&self, root: &Node, name: &str) -> bool {
+        let views = root
+            .get("bufferViews")
+            .and_then(Node::as_array)
+            .unwrap_or(&[]);
+        let kept = self.old.iter().enumerate().any(|(v, placed)| match placed {
+            Placed::Compressed { fresh: None, .. } => views
+                .get(v)
+                .and_then(compress::extension)
+                .is_some_and(|(n, _)| n == name),
+            Placed::Compressed { fresh: Some(_), .. } => name == compress::EXT,
+            _ => false,
+        });
+        kept || (name == compress::EXT && self.new_encoded.iter().any(Option::is_some))
+    }
+}
+
+/// A view of the input that `compress=meshopt` may encode: vertex data read only by mesh
+/// attributes (whole elements of a stride the codec takes) or indices read only as such.
+fn plain_view_shape(root: &Node, v: usize, view: &Node) -> Shape {
+    if compress::extension(view).is_some() {
+        return Shape::Other;
+    }
+    let accessors = root
+        .get("accessors")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let names_view = |n: Option<&Node>| n.and_then(Node::as_u64) == Some(v as u64);
+    let readers: Vec<usize> = accessors
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| names_view(a.get("bufferView")))
+        .map(|(i, _)| i)
+        .collect();
+    // Sparse accessors, and views their sparse parts name, are left alone.
+    let sparse_reads = accessors.iter().any(|a| {
+        a.get("sparse").is_some_and(|sp| {
+            ["indices", "values"]
+                .iter()
+                .any(|part| names_view(sp.get(part).and_then(|p| p.get("bufferView"))))
+        })
+    });
+    if readers.is_empty()
+        || sparse_reads
+        || readers
+            .iter()
+            .any(|&i| accessors[i].get("sparse").is_some())
+    {
+        return Shape::Other;
+    }
+    let (mut vertex, mut index) = (Vec::new(), Vec::new());
+    let mut other = false;
+    let mut triangles = true;
+    let is_reader = |n: &Node| n.as_u64().is_some_and(|i| readers.contains(&(i as usize)));
+    for (owner, node, _) in refs::accessor_refs(root) {
+        if !is_reader(node) {
+            continue;
+        }
+        let Owner::Primitive(m, p) = owner else {
+            other = true;
+            continue;
+        };
+        let primitive = root
+            .get("meshes")
+            .and_then(|ms| ms.index(m))
+            .and_then(|mesh| mesh.get("primitives"))
+            .and_then(|ps| ps.index(p));
+        let is_indices = primitive
+            .and_then(|p| p.get("indices"))
+            .is_some_and(|i| std::ptr::eq(i, node));
+        // Only a triangle list (mode 4, the default) may take the triangle codec.
+        triangles &= primitive
+            .and_then(|p| p.get("mode"))
+            .is_none_or(|m| m.as_u64() == Some(4));
+        if is_indices {
+            index.push(node.as_u64().unwrap_or(0) as usize);
+        } else {
+            vertex.push(node.as_u64().unwrap_or(0) as usize);
+        }
+    }
+    let length = usize_of(view.get("byteLength"));
+    let element_size = |i: usize| -> Option<usize> {
+        let a = accessors.get(i)?;
+        let component = ComponentType::from_code(a.get("componentType")?.as_u64()?)?;
+        let element = ElementType::from_name(a.get("type")?.as_str()?)?;
+        Some(component.size() * element.components())
+    };
+    let all_read = |list: &[usize]| readers.iter().all(|r| list.contains(r));
+    if other || (vertex.is_empty() == index.is_empty()) {
+        return Shape::Other;
+    }
+    if !index.is_empty() && all_read(&index) && view.get("byteStride").is_none() {
+        let sizes: Vec<Option<usize>> = readers.iter().map(|&i| element_size(i)).collect();
+        return match sizes.first().copied().flatten() {
+            Some(size @ (2 | 4))
+                if sizes.iter().all(|s| *s == Some(size)) && length.is_multiple_of(size) =>
+            {
+                Shape::Index { size, triangles }
+            }
+            _ => Shape::Other,
+        };
+    }
+    if all_read(&vertex) {
+        let stride = match view.get("byteStride") {
+            Some(s) => usize_of(Some(s)),
+            None if readers.len() == 1 => element_size(readers[0]).unwrap_or(0),
+            None => 0,
+        };
+        if stride != 0 && stride.is_multiple_of(4) && stride <= 256 && length.is_multiple_of(stride)
+        {
+            return Shape::Vertex { stride };
+        }
+    }
+    Shape::Other
+}
+
+/// The bytes a view holds once decoded: its own buffer's (a fallback the loader filled, or real
+/// data), or, when the loader did not decode it (`KHR_meshopt_compression`), decoded here.
+fn decoded_view<'b>(
+    buffers: &'b BufferMap<'_>,
+    v: usize,
+    view: &Node,
+) -> Result<std::borrow::Cow<'b, [u8]>, SceneError> {
+    let b = usize_of(view.get("buffer"));
+    let offset = usize_of(view.get("byteOffset"));
+    let length = usize_of(view.get("byteLength"));
+    if let Some(bytes) = buffers
+        .buffers
+        .get(b)
+        .and_then(|b| b.bytes.get(offset..offset.saturating_add(length)))
+    {
+        return Ok(std::borrow::Cow::Borrowed(bytes));
+    }
+    let outside = || {
+        SceneError::new(
+            ProblemCode::InvalidBufferView,
+            format!("bufferViews[{v}] lies outside buffers[{b}]"),
+        )
+    };
+    let (_, ext) = compress::extension(view).ok_or_else(outside)?;
+    let (source, at, len) = compress::compressed_range(ext).ok_or_else(outside)?;
+    let data = buffers
+        .buffers
+        .get(source)
+        .and_then(|b| b.bytes.get(at..at.saturating_add(len)))
+        .ok_or_else(outside)?;
+    let name = |key: &str| ext.get(key).and_then(Node::as_str).unwrap_or("NONE");
+    let malformed = |e: tspace_meshopt::MeshoptError| {
+        SceneError::new(
+            ProblemCode::MalformedMeshopt,
+            format!("bufferViews[{v}]: {e}"),
+        )
+    };
+    let decoded = tspace_meshopt::decode(
+        &tspace_meshopt::Compressed {
+            data,
+            count: usize_of(ext.get("count")),
+            byte_stride: usize_of(ext.get("byteStride")),
+            mode: tspace_meshopt::Mode::from_name(name("mode")).map_err(malformed)?,
+            filter: tspace_meshopt::Filter::from_name(name("filter")).map_err(malformed)?,
+        },
+        length,
+    )
+    .map_err(malformed)?;
+    if decoded.len() != length {
+        return Err(outside());
+    }
+    Ok(std::borrow::Cow::Owned(decoded))
+}
+
+/// Appends `bytes` to the data buffer at a multiple of `to` (plus `keep`, an offset modulo 16
+/// to keep), returning where they start.
+fn push_at(bin: &mut Vec<u8>, bytes: &[u8], to: usize, keep: usize) -> usize {
+    let at = align(bin.len(), to) + keep;
+    bin.resize(at, 0);
+    bin.extend_from_slice(bytes);
+    at
+}
+
+/// The packed layout: every kept view copied on its own (plain, or its compressed bytes and a
+/// range of the fallback buffer), then the changes' views (encoded when the output is
+/// compressed), then the embedded images.
+fn lay_out_packed(
+    root: &Node,
+    buffers: &BufferMap<'_>,
+    numbering: &Numbering,
+    changes: &Changes,
+    images: &Images,
+    output: Output,
+    recompress: bool,
+) -> Result<Layout, SceneError> {
+    let old_views = root
+        .get("bufferViews")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let meshopt = output == Output::Meshopt;
+    // The encoding is the costly part: every view at once, in parallel.
+    let fresh_candidates: Vec<(usize, Shape)> = if meshopt && recompress {
+        old_views
+            .iter()
+            .enumerate()
+            .filter(|(v, _)| numbering.keeps_view(*v))
+            .map(|(v, view)| (v, plain_view_shape(root, v, view)))
+            .filter(|(_, shape)| *shape != Shape::Other)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let fresh: Vec<(usize, Encoded)> = fresh_candidates
+        .par_iter()
+        .filter_map(|&(v, shape)| {
+            let view = old_views.get(v)?;
+            let bytes = buffers
+                .buffers
+                .get(usize_of(view.get("buffer")))?
+                .bytes
+                .get(
+                    usize_of(view.get("byteOffset"))
+                        ..usize_of(view.get("byteOffset")) + usize_of(view.get("byteLength")),
+                )?;
+            Some((v, compress::encode(bytes, shape, None)?))
+        })
+        .collect();
+    let new_encoded: Vec<Option<Encoded>> = if meshopt {
+        changes
+            .views
+            .par_iter()
+            .map(|view| compress::encode(&view.data, view.shape, view.prefiltered.as_ref()))
+            .collect()
+    } else {
+        changes.views.iter().map(|_| None).collect()
+    };
+
+    let mut bin: Vec<u8> = Vec::new();
+    let mut fallback_length = 0usize;
+    let mut old = vec![Placed::Nowhere; old_views.len()];
+    for (v, view) in old_views.iter().enumerate() {
+        if !numbering.keeps_view(v) {
+            continue;
+        }
+        let offset = usize_of(view.get("byteOffset"));
+        let length = usize_of(view.get("byteLength"));
+        let fresh_index = fresh.iter().position(|(f, _)| *f == v);
+        let ext = compress::extension(view);
+        old[v] = match (meshopt, ext, fresh_index) {
+            (true, _, Some(k)) => {
+                let data = push_at(&mut bin, &fresh[k].1.bytes, 4, 0);
+                let fallback = align(fallback_length, 16) + offset % 16;
+                fallback_length = fallback + length;
+                Placed::Compressed {
+                    fallback,
+                    data,
+                    fresh: Some(k),
+                }
+            }
+            (true, Some((_, ext)), None) => {
+                let (source, at, len) = compress::compressed_range(ext).ok_or_else(|| {
+                    SceneError::new(
+                        ProblemCode::MalformedMeshopt,
+                        format!("bufferViews[{v}]: its meshopt extension names no data"),
+                    )
+                })?;
+                let bytes = buffers
+                    .buffers
+                    .get(source)
+                    .filter(|_| buffers.has_data(source))
+                    .and_then(|b| b.bytes.get(at..at.saturating_add(len)))
+                    .ok_or_else(|| {
+                        SceneError::new(
+                            ProblemCode::MalformedMeshopt,
+                            format!(
+                                "bufferViews[{v}]: the compressed bytes lie outside buffers[{source}]"
+                            ),
+                        )
+                    })?;
+                let data = push_at(&mut bin, bytes, 4, 0);
+                let fallback = align(fallback_length, 16) + offset % 16;
+                fallback_length = fallback + length;
+                Placed::Compressed {
+                    fallback,
+                    data,
+                    fresh: None,
+                }
+            }
+            _ => {
+                let b = usize_of(view.get("buffer"));
+                if ext.is_none() && !buffers.has_data(b) {
+                    // Not meshopt and in no buffer with data: left as it is.
+                    Placed::Nowhere
+                } else {
+                    let bytes = decoded_view(buffers, v, view)?;
+                    Placed::Data(push_at(&mut bin, &bytes, 16, offset % 16))
+                }
+            }
+        };
+    }
+    let mut new_view_offsets = Vec::with_capacity(changes.views.len() + images.data.len());
+    let mut new_fallback = Vec::with_capacity(changes.views.len());
+    for (view, encoded) in changes.views.iter().zip(&new_encoded) {
+        match encoded {
+            Some(e) => {
+                new_view_offsets.push(push_at(&mut bin, &e.bytes, 4, 0));
+                let fallback = align(fallback_length, 4);
+                fallback_length = fallback + view.data.len();
+                new_fallback.push(fallback);
+            }
+            None => {
+                new_view_offsets.push(push_at(&mut bin, &view.data, 4, 0));
+                new_fallback.push(0);
+            }
+        }
+    }
+    for data in &images.data {
+        new_view_offsets.push(push_at(&mut bin, data, 4, 0));
+    }
+    // The fallback buffer is the second: a GLB's first buffer must be the BIN chunk.
+    let bin_needed = !bin.is_empty() || fallback_length > 0;
+    if bin_needed && bin.is_empty() {
+        bin.push(0);
+    }
+    Ok(Layout {
+        bin,
+        view_position: Vec::new(),
+        new_view_offsets,
+        bin_needed,
+        packed: Some(Packed {
+            output,
+            old,
+            fresh,
+            new_encoded,
+            new_fallback,
+            fallback_length,
+        }),
+    })
+}
+
+/// A compressed view of the changes: its range in the fallback buffer, its data compressed in
+/// buffer 0 at `data`.
+fn compressed_view_json(
+    fallback: usize,
+    length: usize,
+    stride: Option<usize>,
+    target: Option<u32>,
+    encoded: &Encoded,
+    data: usize,
+) -> String {
+    let mut text = format!(
+        "{{\"buffer\":{},\"byteOffset\":{fallback},\"byteLength\":{length}",
+        Packed::FALLBACK
+    );
+    if let Some(stride) = stride {
+        text.push_str(&format!(",\"byteStride\":{stride}"));
+    }
+    if let Some(target) = target {
+        text.push_str(&format!(",\"target\":{target}"));
+    }
+    text.push_str(&format!(
+        ",\"extensions\":{{\"{}\":{}}}}}",
+        compress::EXT,
+        encoded.extension_json(data)
+    ));
+    text
+}
+
+/// Drops the orphan views and points each kept one at its place in the packed layout.
+fn edit_buffer_views_packed(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    numbering: &Numbering,
+    packed: &Packed,
+) -> Result<(), SceneError> {
+    let Some(list) = root.get("bufferViews") else {
+        return Ok(());
+    };
+    let set_if = |editor: &mut Editor<'_, '_>, node: &Node, key: &str, value: usize| {
+        if node.get(key).is_none_or(|n| usize_of(Some(n)) != value) {
+            editor
+                .set_member(node, key, value.to_string())
+                .map_err(edit_error)?;
+        }
+        Ok::<(), SceneError>(())
+    };
+    for (v, view) in list.as_array().unwrap_or(&[]).iter().enumerate() {
+        if !numbering.keeps_view(v) {
+            editor.remove_element(list, v).map_err(edit_error)?;
+            continue;
+        }
+        match packed.old.get(v).copied().unwrap_or(Placed::Nowhere) {
+            Placed::Nowhere => {}
+            Placed::Data(at) => {
+                set_if(editor, view, "buffer", 0)?;
+                set_if(editor, view, "byteOffset", at)?;
+                if let Some((name, _)) = compress::extension(view)
+                    && let Some(extensions) = view.get("extensions")
+                {
+                    if extensions.as_object().is_some_and(|m| m.len() == 1) {
+                        editor
+                            .remove_member(view, "extensions")
+                            .map_err(edit_error)?;
+                    } else {
+                        editor.remove_member(extensions, name).map_err(edit_error)?;
+                    }
+                }
+            }
+            Placed::Compressed {
+                fallback,
+                data,
+                fresh,
+            } => {
+                set_if(editor, view, "buffer", Packed::FALLBACK)?;
+                set_if(editor, view, "byteOffset", fallback)?;
+                match fresh {
+                    None => {
+                        if let Some((_, ext)) = compress::extension(view) {
+                            set_if(editor, ext, "buffer", 0)?;
+                            set_if(editor, ext, "byteOffset", data)?;
+                        }
+                    }
+                    Some(k) => {
+                        let text = packed.fresh[k].1.extension_json(data);
+                        match view.get("extensions") {
+                            Some(extensions) if extensions.as_object().is_some() => editor
+                                .set_member(extensions, compress::EXT, text)
+                                .map_err(edit_error)?,
+                            _ => editor
+                                .set_member(
+                                    view,
+                                    "extensions",
+                                    format!("{{\"{}\":{text}}}", compress::EXT),
+                                )
+                                .map_err(edit_error)?,
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The buffers of a packed write: the data buffer, then the fallback buffer when any view is
+/// compressed (the input's own fallback entry, resized, or a new one).
+fn edit_buffers_packed(
+    editor: &mut Editor<'_, '_>,
+    loaded: &Loaded<'_>,
+    buffers: &BufferMap<'_>,
+    layout: &Layout,
+    format: OutputFormat,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let root = loaded.doc.root();
+    let Some(packed) = &layout.packed else {
+        return Ok(());
+    };
+    let bin_uri = match format {
+        OutputFormat::Glb => None,
+        OutputFormat::GltfEmbedded => Some(format!(
+            "data:application/octet-stream;base64,{}",
+            base64(&layout.bin)
+        )),
+    };
+    let list = root.get("buffers").and_then(Node::as_array).unwrap_or(&[]);
+    let mut entries: Vec<String> = Vec::new();
+    if layout.bin_needed {
+        let byte_length = layout.bin.len().max(1);
+        entries.push(merged_buffer(
+            loaded,
+            buffers,
+            byte_length,
+            bin_uri.as_deref(),
+        )?);
+        let merged_count = (0..list.len()).filter(|&b| buffers.has_data(b)).count();
+        if merged_count > 1 {
+            warnings.push(format!(
+                "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
+            ));
+        }
+    }
+    if packed.fallback_length > 0 {
+        entries.push(fallback_buffer(loaded, buffers, packed.fallback_length)?);
+    }
+    let text = format!("[{}]", entries.join(","));
+    match root.get("buffers") {
+        Some(node) if !entries.is_empty() => editor.replace(node, text).map_err(edit_error),
+        Some(_) => editor
+            .remove_member(root, "buffers")
+            .map(|_| ())
+            .map_err(edit_error),
+        None if !entries.is_empty() => editor.set_member(root, "buffers", text).map_err(edit_error),
+        None => Ok(()),
+    }
+}
+
+/// The fallback buffer's entry: the input's first buffer without data that is marked as a
+/// meshopt fallback, with its new length (its name and extras kept), or a new one.
+fn fallback_buffer(
+    loaded: &Loaded<'_>,
+    buffers: &BufferMap<'_>,
+    byte_length: usize,
+) -> Result<String, SceneError> {
+    let list = loaded
+        .doc
+        .root()
+        .get("buffers")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    let marked = list.iter().enumerate().find(|(b, buffer)| {
+        !buffers.has_data(*b)
+            && buffer
+                .get("extensions")
+                .and_then(|e| e.get(compress::EXT))
+                .is_some()
+            && buffer.get("uri").is_none()
+    });
+    match marked {
+        Some((_, original)) => {
+            let text = loaded.doc.text(original);
+            let sub = Document::parse(text.as_bytes()).map_err(|e| {
+                SceneError::new(ProblemCode::MalformedJson, format!("buffers: {e}"))
+            })?;
+            let mut sub_editor = Editor::new(&sub);
+            sub_editor
+                .set_member(sub.root(), "byteLength", byte_length.to_string())
+                .map_err(edit_error)?;
+            sub_editor.render().map_err(edit_error)
+        }
+        None => Ok(format!(
+            "{{\"byteLength\":{byte_length},\"extensions\":{{\"{}\":{{\"fallback\":true}}}}}}",
+            compress::EXT
+        )),
+    }
+}
+
+/// `extensionsUsed` and `extensionsRequired` after a packed write: `EXT_meshopt_compression`
+/// in both when any view has it (the output holds no uncompressed copy), out of both when none
+/// has; `KHR_meshopt_compression` leaves with its last view.
+fn list_meshopt(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    packed: &Packed,
+) -> Result<(), SceneError> {
+    for name in [compress::EXT, compress::KHR] {
+        let used = packed.output == Output::Meshopt && packed.uses_extension(root, name);
+        for list in ["extensionsUsed", "extensionsRequired"] {
+            let listed = root
+                .get(list)
+                .and_then(Node::as_array)
+                .unwrap_or(&[])
+                .iter()
+                .any(|n| n.as_str() == Some(name));
+            if used && !listed {
+                editor
+                    .push_to_array_member(root, list, json::escape_str(name))
+                    .map_err(edit_error)?;
+            } else if !used && listed {
+                unlist_extension(editor, root, list, name)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The report's line on what this write compressed: each view's mode, and its filter and why.
+fn describe_compression(
+    views: &[(usize, &'static str, Option<&'static str>)],
+    packed: Option<&Packed>,
+) -> String {
+    let list: Vec<String> = views
+        .iter()
+        .map(|(v, mode, filter)| match filter {
+            Some(f) => format!("bufferViews[{v}] {mode} with filter {f}"),
+            None => format!("bufferViews[{v}] {mode}"),
+        })
+        .collect();
+    let filtered = views.iter().any(|(_, _, f)| f.is_some());
+    let copied = packed.is_some_and(|p| {
+        p.old
+            .iter()
+            .any(|placed| matches!(placed, Placed::Compressed { fresh: None, .. }))
+    });
+    format!(
+        "EXT_meshopt_compression: {} buffer view{} encoded with meshoptimizer's lossless codecs ({}); {}{}",
+        views.len(),
+        if views.len() == 1 { "" } else { "s" },
+        list.join(", "),
+        if filtered {
+            "a filter only where the input view stored those very values with it (re-encoded from its pre-filter values and checked to decode to the same bytes), none elsewhere since filters are lossy"
+        } else {
+            "no filter, since filters are lossy"
+        },
+        if copied {
+            "; the input's compressed views were copied as they were"
+        } else {
+            ""
+        }
+    )
 }
