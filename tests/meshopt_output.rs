@@ -460,3 +460,60 @@ fn three_js_decoder_and_gltf_transform_read_the_output() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// gltfpack's `-cc` DamagedHelmet (not committed: `scripts/make-helmet-variants DIR`, then
+/// `TSPACE_HELMET_CC=DIR/helmet_cc.glb`): compressed, validator-clean, tangents within 1° after
+/// decoding, decoded alike by meshoptimizer's decoder; prints its mesh bytes in and out.
+#[test]
+fn helmet_cc_when_given() {
+    let Some(path) = std::env::var_os("TSPACE_HELMET_CC") else {
+        eprintln!("TSPACE_HELMET_CC is not set; skipping the helmet");
+        return;
+    };
+    let input = std::fs::read(&path).unwrap();
+    let options = SceneOptions::default();
+    let processed = process(&input, &NoResources, &options).unwrap();
+    let bytes = processed.bytes.unwrap();
+    assert_valid_output("helmet_cc", &bytes);
+    let (before, after) = (mesh_bytes(&glb_json(&input)), mesh_bytes(&glb_json(&bytes)));
+    eprintln!(
+        "helmet_cc: mesh bytes {before} in, {after} out ({:.3}x); file {} -> {}",
+        after as f64 / before as f64,
+        input.len(),
+        bytes.len()
+    );
+    for view in mesh_views(&glb_json(&bytes)) {
+        assert!(view["extensions"][MESHOPT_EXT].is_object(), "{view}");
+    }
+    for p in read_primitives(&bytes) {
+        let worst = worst_angle(&p);
+        eprintln!("helmet_cc: worst angle to the reference {worst:.3}°");
+        assert!(worst <= 1.0);
+    }
+    if let Some(decoder) = meshopt_decoder() {
+        let out = std::env::temp_dir().join(format!("tspace-helmet-{}.glb", std::process::id()));
+        std::fs::write(&out, &bytes).unwrap();
+        let decoded = node_json("meshopt-decoder", &[&decoder, &out]).unwrap();
+        let loaded = load::load(
+            &bytes,
+            &NoResources,
+            &LoadLimits {
+                max_buffer_bytes: 1 << 30,
+            },
+        )
+        .unwrap();
+        let json = glb_json(&bytes);
+        for (v, data) in decoded["views"].as_object().unwrap() {
+            let view = &json["bufferViews"][v.parse::<usize>().unwrap()];
+            let at = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+            let len = view["byteLength"].as_u64().unwrap() as usize;
+            let theirs =
+                tspace::scene::uri::decode_base64(data.as_str().unwrap().as_bytes()).unwrap();
+            assert!(
+                loaded.buffers[1].bytes[at..at + len] == theirs[..],
+                "view {v}"
+            );
+        }
+        let _ = std::fs::remove_file(&out);
+    }
+}
