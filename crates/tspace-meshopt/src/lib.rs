@@ -1034,6 +1034,22 @@ fn decode_sequence(data: &[u8], stride: usize, out: &mut [u8]) -> Result<(), Mes
 // ---------------------------------------------------------------------------------------------
 // Filters
 
+/// The filter step of [`decode`] on its own: applies `filter` in place to elements of `stride`
+/// bytes, turning stored (pre-filter) values into the ones a decoder delivers. For an encoder
+/// that must know exactly what its filtered values decode to. Elements of a size the filter does
+/// not take (see [`Filter`]) are left alone, as is a trailing partial element.
+///
+/// ```
+/// use tspace_meshopt::{Filter, unfilter};
+/// // Octahedral, 8-bit: x = 0, y = 0 and 1.0 stored as 127 decode to +z.
+/// let mut element = [0u8, 0, 127, 127];
+/// unfilter(Filter::Octahedral, 4, &mut element);
+/// assert_eq!(element, [0, 0, 127, 127]);
+/// ```
+pub fn unfilter(filter: Filter, stride: usize, data: &mut [u8]) {
+    apply_filter(filter, stride, data);
+}
+
 /// Applies `filter` in place to elements of `stride` bytes (`decode` has checked that the
 /// filter suits the stride; elements of another size are left alone).
 fn apply_filter(filter: Filter, stride: usize, data: &mut [u8]) {

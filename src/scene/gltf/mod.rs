@@ -90,6 +90,8 @@ pub fn process_with<'a>(
         data,
         max_vertices: limits.max_vertices,
         tangents: options.tangents,
+        compressed_output: write::compress::resolve(options.compress, root)
+            == write::compress::Output::Meshopt,
     };
     let mut report = report_header(bytes, &loaded, options);
     let edits = report_primitives(&scene, &plans, &jobs, &computed, &mut report)?;
@@ -301,6 +303,8 @@ struct Scene<'s> {
     data: Data<'s>,
     max_vertices: usize,
     tangents: TangentType,
+    /// The views tspace writes are meshopt-compressed.
+    compressed_output: bool,
 }
 
 /// One report entry per plan, in plan order; for each primitive that gets tangents, its edit.
@@ -423,7 +427,10 @@ fn generate_primitive(
     let Some(primitive) = primitive_node(scene.root, plan.mesh, plan.primitive) else {
         return Ok(false);
     };
-    let snorm = tangent_snorm(scene, key, c);
+    let snorm = tangent_snorm(scene, key, c).map(|snorm| TangentStorage {
+        snorm,
+        octahedral: scene.compressed_output && octahedral_normals(scene, key),
+    });
     let edit = edits.edit_primitive(scene, primitive, key.topology, job, c, snorm)?;
     entry.tangent = edits
         .job_refs
@@ -475,7 +482,10 @@ fn write_scene<'a>(
     if !options.write {
         return Ok(None);
     }
+    let keeps_layout = write::compress::resolve(options.compress, loaded.doc.root())
+        == write::compress::Output::Keep;
     let out = if changes.primitives.is_empty()
+        && keeps_layout
         && loaded.container == load::Container::Glb
         && options.format == OutputFormat::Glb
     {
@@ -507,16 +517,53 @@ fn tangent_snorm(scene: &Scene<'_>, key: &GeometryKey, c: &Computed) -> Option<S
     }
 }
 
-/// The job's TANGENT accessor: float, or quantized to `snorm` as close to the float tangents
-/// as the type allows (and as orthogonal to the decoded normals), with the largest angle that
-/// added.
+/// How a quantized TANGENT is stored: its type, and whether in the OCTAHEDRAL filter's values.
+#[derive(Clone, Copy)]
+struct TangentStorage {
+    snorm: Snorm,
+    /// Compressed output of a primitive whose NORMAL the input stored with meshopt's OCTAHEDRAL
+    /// filter: the tangents take that representation too (see `quantize::octahedral_tangents`).
+    octahedral: bool,
+}
+
+/// Whether the key's NORMAL is stored in a meshopt view with the OCTAHEDRAL filter.
+fn octahedral_normals(scene: &Scene<'_>, key: &GeometryKey) -> bool {
+    let view = key
+        .normal
+        .and_then(|n| {
+            scene
+                .root
+                .get("accessors")?
+                .index(n)?
+                .get("bufferView")?
+                .as_u64()
+        })
+        .and_then(|v| {
+            scene
+                .root
+                .get("bufferViews")?
+                .index(usize::try_from(v).ok()?)
+        });
+    let extensions = view.and_then(|v| v.get("extensions"));
+    ["EXT_meshopt_compression", "KHR_meshopt_compression"]
+        .iter()
+        .any(|name| {
+            extensions
+                .and_then(|e| e.get(name)?.get("filter")?.as_str())
+                .is_some_and(|f| f == "OCTAHEDRAL")
+        })
+}
+
+/// The job's TANGENT accessor: float, or quantized to `storage`'s type as close to the float
+/// tangents as the type (or the octahedral filter) allows, and as orthogonal to the decoded
+/// normals, with the largest angle that added.
 fn add_tangents(
     changes: &mut Changes,
     c: &Computed,
-    snorm: Option<Snorm>,
+    storage: Option<TangentStorage>,
 ) -> (Ref, Option<(Snorm, f32)>) {
     let split = &c.tangents.split;
-    let Some(snorm) = snorm else {
+    let Some(TangentStorage { snorm, octahedral }) = storage else {
         return (changes.add_floats(&split.vertex_tangents, false), None);
     };
     let source_normals = c.geometry.normals.as_deref().unwrap_or(&[]);
@@ -525,9 +572,21 @@ fn add_tangents(
         .iter()
         .filter_map(|&v| source_normals.get(v as usize).copied())
         .collect();
-    let quantized = quantize::quantize_tangents(&split.vertex_tangents, &normals, snorm);
     let count = split.vertex_tangents.len();
-    let r = changes.add_snorm(quantized.bytes, count, snorm, accessor::ElementType::Vec4);
+    let vec4 = accessor::ElementType::Vec4;
+    if octahedral {
+        let (quantized, stored) =
+            quantize::octahedral_tangents(&split.vertex_tangents, &normals, snorm);
+        let prefiltered = write::compress::Prefiltered {
+            bytes: stored,
+            filter: tspace_meshopt::Filter::Octahedral,
+        };
+        let degrees = quantized.max_added_degrees;
+        let r = changes.add_snorm_filtered(quantized.bytes, count, snorm, vec4, Some(prefiltered));
+        return (r, Some((snorm, degrees)));
+    }
+    let quantized = quantize::quantize_tangents(&split.vertex_tangents, &normals, snorm);
+    let r = changes.add_snorm(quantized.bytes, count, snorm, vec4);
     (r, Some((snorm, quantized.max_added_degrees)))
 }
 
@@ -641,7 +700,7 @@ impl Edits {
         topology: Topology,
         job: usize,
         c: &Computed,
-        snorm: Option<Snorm>,
+        snorm: Option<TangentStorage>,
     ) -> Result<PrimitiveEdit, SceneError> {
         let split = &c.tangents.split;
         // Decoded accessors have no data in the file: the primitive's are all written anew.
@@ -681,8 +740,14 @@ impl Edits {
             .and_then(Node::as_array)
             .unwrap_or(&[]);
         for (t, target) in targets.iter().enumerate() {
-            edit.targets
-                .push(self.edit_target(scene, job, c, (t, target), keeps, snorm)?);
+            edit.targets.push(self.edit_target(
+                scene,
+                job,
+                c,
+                (t, target),
+                keeps,
+                snorm.map(|s| s.snorm),
+            )?);
         }
         Ok(edit)
     }

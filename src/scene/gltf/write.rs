@@ -161,6 +161,19 @@ impl Changes {
         snorm: Snorm,
         element_type: ElementType,
     ) -> Ref {
+        self.add_snorm_filtered(bytes, count, snorm, element_type, None)
+    }
+
+    /// [`Changes::add_snorm`], with the values a meshopt filter stores for them: compressed
+    /// output then uses the filter (after checking that it decodes to `bytes` exactly).
+    pub fn add_snorm_filtered(
+        &mut self,
+        bytes: Vec<u8>,
+        count: usize,
+        snorm: Snorm,
+        element_type: ElementType,
+        prefiltered: Option<Prefiltered>,
+    ) -> Ref {
         let component_type = match snorm {
             Snorm::I8 => ComponentType::I8,
             Snorm::I16 => ComponentType::I16,
@@ -173,6 +186,7 @@ impl Changes {
             (stride != size).then_some(stride),
             Shape::Vertex { stride },
         );
+        self.views[view].prefiltered = prefiltered;
         self.push_accessor(NewAccessor {
             view,
             component_type,
@@ -2225,7 +2239,7 @@ fn describe_compression(
         if views.len() == 1 { "" } else { "s" },
         list.join(", "),
         if filtered {
-            "a filter only where the input view stored those very values with it (re-encoded from its pre-filter values and checked to decode to the same bytes), none elsewhere since filters are lossy"
+            "a filter only where it decodes to exactly the values written (checked): views copied from input views stored with it, and TANGENT quantized to the octahedral representation its NORMAL has; none elsewhere, since filters are lossy"
         } else {
             "no filter, since filters are lossy"
         },

@@ -128,7 +128,7 @@ impl Encoded {
                 "no filter: the filters are lossy, and these values did not come filtered"
             }
             (Mode::Attributes, _) => {
-                "the input view's own filter, re-encoded from its pre-filter values and checked to decode to the same bytes"
+                "values the filter decodes to exactly (checked): a copy of an input view stored with it, or tangents quantized to their normals' octahedral representation"
             }
             _ => "indices take no filter",
         }
