@@ -3,6 +3,11 @@
 
 # ---- build ----
 FROM rust:1-slim-bookworm AS build
+# The `meshopt` crate (EXT_meshopt_compression output) compiles meshoptimizer's C++; the slim
+# image has a C compiler only. The binary then links libstdc++, which debian:bookworm-slim has.
+RUN apt-get update \
+    && apt-get install -y --no-install-recommends g++ \
+    && rm -rf /var/lib/apt/lists/*
 WORKDIR /src
 
 # The workspace as it is (manifests, the root package and crates/; benches/ because the root

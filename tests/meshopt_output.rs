@@ -536,3 +536,30 @@ fn helmet_cc_when_given() {
         let _ = std::fs::remove_file(&out);
     }
 }
+
+#[test]
+fn compression_applies_to_a_scene_that_needs_no_tangents() {
+    // Box needs no tangents (no UVs), so with the default options the GLB comes back byte for
+    // byte; asking for meshopt still compresses it, and none still decompresses the meshopt box.
+    let box_glb = std::fs::read(workspace_root().join("fixtures/Box/Box.glb")).unwrap();
+    let options = |compress| SceneOptions {
+        compress,
+        ..SceneOptions::default()
+    };
+    let same = process(&box_glb, &NoResources, &options(Compression::Auto)).unwrap();
+    assert_eq!(same.bytes.unwrap(), box_glb);
+    let compressed = process(&box_glb, &NoResources, &options(Compression::Meshopt)).unwrap();
+    let bytes = compressed.bytes.unwrap();
+    assert_valid_output("Box meshopt", &bytes);
+    let json = glb_json(&bytes);
+    assert!(
+        mesh_views(&json)
+            .iter()
+            .all(|view| view["extensions"][MESHOPT_EXT].is_object())
+    );
+    let meshopt_box = fixture("Box_gltf_transform_meshopt.glb");
+    let plain = process(&meshopt_box, &NoResources, &options(Compression::None)).unwrap();
+    let bytes = plain.bytes.unwrap();
+    assert_valid_output("Box_gltf_transform_meshopt none", &bytes);
+    assert!(!String::from_utf8_lossy(&bytes).contains(MESHOPT_EXT));
+}

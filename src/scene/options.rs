@@ -36,107 +36,88 @@ impl Default for SceneLimits {
     }
 }
 
-/// The container to write.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum OutputFormat {
-    #[default]
-    Glb,
-    /// `.gltf` JSON with the buffer embedded as a `data:` URI.
-    GltfEmbedded,
-}
-
-impl OutputFormat {
-    /// Every format, in the order help texts list them.
-    pub const ALL: [OutputFormat; 2] = [OutputFormat::Glb, OutputFormat::GltfEmbedded];
-
-    /// The name used on the command line, in query strings and in reports; also the file
-    /// extension.
-    pub fn name(self) -> &'static str {
-        match self {
-            OutputFormat::Glb => "glb",
-            OutputFormat::GltfEmbedded => "gltf",
+/// An option whose values are a fixed list of names: the enum, `ALL` (in the order help lists
+/// them), `name` (what the command line, the query string and reports say), the one [`FromStr`]
+/// the command line and the query string share, and its [`Choices`] with each value's help; all
+/// from one table, so that a value cannot be parsed without being listed, or listed without help.
+macro_rules! named_choices {
+    (
+        $(#[$meta:meta])*
+        pub enum $enum:ident expecting $expected:literal {
+            $( $(#[$variant_meta:meta])* $variant:ident => $name:literal, $help:literal; )+
         }
-    }
-}
-
-/// The one parser of format names that the command line and the query string share.
-impl FromStr for OutputFormat {
-    type Err = Expected;
-
-    fn from_str(name: &str) -> Result<OutputFormat, Expected> {
-        OutputFormat::ALL
-            .into_iter()
-            .find(|f| f.name() == name)
-            .ok_or(Expected("glb or gltf"))
-    }
-}
-
-/// The component type of the TANGENT tspace writes.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum TangentType {
-    /// The normals' own precision: normalized BYTE or SHORT where NORMAL is (KHR_mesh_quantization),
-    /// float everywhere else.
-    #[default]
-    Auto,
-    /// Always float.
-    Float,
-}
-
-impl TangentType {
-    pub const ALL: [TangentType; 2] = [TangentType::Auto, TangentType::Float];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            TangentType::Auto => "auto",
-            TangentType::Float => "float",
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+        pub enum $enum {
+            $( $(#[$variant_meta])* $variant, )+
         }
-    }
-}
 
-impl FromStr for TangentType {
-    type Err = Expected;
+        impl $enum {
+            /// Every value, in the order help texts list them.
+            pub const ALL: &'static [$enum] = &[$($enum::$variant),+];
 
-    fn from_str(name: &str) -> Result<TangentType, Expected> {
-        TangentType::ALL
-            .into_iter()
-            .find(|t| t.name() == name)
-            .ok_or(Expected("auto or float"))
-    }
-}
-
-/// How the geometry tspace writes is stored.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Compression {
-    /// Compressed (`EXT_meshopt_compression`) when the input used meshopt compression, else the
-    /// input's own layout.
-    #[default]
-    Auto,
-    /// Uncompressed: meshopt-compressed views of the input are written out as plain data.
-    None,
-    /// `EXT_meshopt_compression`, whatever the input.
-    Meshopt,
-}
-
-impl Compression {
-    pub const ALL: [Compression; 3] = [Compression::Auto, Compression::None, Compression::Meshopt];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Compression::Auto => "auto",
-            Compression::None => "none",
-            Compression::Meshopt => "meshopt",
+            /// The name used on the command line, in query strings and in reports.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $( $enum::$variant => $name, )+
+                }
+            }
         }
+
+        impl FromStr for $enum {
+            type Err = Expected;
+
+            fn from_str(name: &str) -> Result<$enum, Expected> {
+                $enum::ALL
+                    .iter()
+                    .copied()
+                    .find(|value| value.name() == name)
+                    .ok_or(Expected($expected))
+            }
+        }
+
+        impl Choices for $enum {
+            fn choices() -> Vec<Choice> {
+                vec![$( Choice { name: $name, aliases: &[], help: $help }, )+]
+            }
+        }
+    };
+}
+
+named_choices! {
+    /// The container to write. Its name is also the output file's extension.
+    pub enum OutputFormat expecting "glb or gltf" {
+        #[default]
+        Glb => "glb", "Binary glTF, images embedded";
+        /// `.gltf` JSON with the buffer embedded as a `data:` URI.
+        GltfEmbedded => "gltf", "glTF JSON with its buffer embedded as a data: URI";
     }
 }
 
-impl FromStr for Compression {
-    type Err = Expected;
+named_choices! {
+    /// The component type of the TANGENT tspace writes.
+    pub enum TangentType expecting "auto or float" {
+        /// The normals' own precision: normalized BYTE or SHORT where NORMAL is
+        /// (KHR_mesh_quantization), float everywhere else.
+        #[default]
+        Auto => "auto", "The normals' precision: normalized byte or short where NORMAL is quantized, else float";
+        /// Always float.
+        Float => "float", "Always float";
+    }
+}
 
-    fn from_str(name: &str) -> Result<Compression, Expected> {
-        Compression::ALL
-            .into_iter()
-            .find(|c| c.name() == name)
-            .ok_or(Expected("auto, none or meshopt"))
+named_choices! {
+    /// How the geometry tspace writes is stored.
+    pub enum Compression expecting "auto, none or meshopt" {
+        /// Compressed (`EXT_meshopt_compression`) when the input used meshopt compression, else
+        /// the input's own layout.
+        #[default]
+        Auto => "auto", "EXT_meshopt_compression when the input used meshopt, else the input's layout";
+        /// Uncompressed: meshopt-compressed views of the input are written out as plain data.
+        None => "none", "Uncompressed: meshopt views of the input written out plain";
+        /// `EXT_meshopt_compression`, whatever the input.
+        Meshopt => "meshopt", "EXT_meshopt_compression, whatever the input";
     }
 }
 
@@ -188,61 +169,6 @@ impl Choices for Method {
                     Method::MikkTSpace => "MikkTSpace, what normal-map bakers use",
                     Method::Fast => "Faster and smooth, but not what bakers use",
                     Method::Axis => "Needs no texture coordinates (for OBJ files without `vt`)",
-                },
-            })
-            .collect()
-    }
-}
-
-impl Choices for TangentType {
-    fn choices() -> Vec<Choice> {
-        TangentType::ALL
-            .into_iter()
-            .map(|t| Choice {
-                name: t.name(),
-                aliases: &[],
-                help: match t {
-                    TangentType::Auto => {
-                        "The normals' precision: normalized byte or short where NORMAL is quantized, else float"
-                    }
-                    TangentType::Float => "Always float",
-                },
-            })
-            .collect()
-    }
-}
-
-impl Choices for Compression {
-    fn choices() -> Vec<Choice> {
-        Compression::ALL
-            .into_iter()
-            .map(|c| Choice {
-                name: c.name(),
-                aliases: &[],
-                help: match c {
-                    Compression::Auto => {
-                        "EXT_meshopt_compression when the input used meshopt, else the input's layout"
-                    }
-                    Compression::None => "Uncompressed: meshopt views of the input written out plain",
-                    Compression::Meshopt => "EXT_meshopt_compression, whatever the input",
-                },
-            })
-            .collect()
-    }
-}
-
-impl Choices for OutputFormat {
-    fn choices() -> Vec<Choice> {
-        OutputFormat::ALL
-            .into_iter()
-            .map(|f| Choice {
-                name: f.name(),
-                aliases: &[],
-                help: match f {
-                    OutputFormat::Glb => "Binary glTF, images embedded",
-                    OutputFormat::GltfEmbedded => {
-                        "glTF JSON with its buffer embedded as a data: URI"
-                    }
                 },
             })
             .collect()
