@@ -8,13 +8,12 @@
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use tspace::scene::gltf::accessor;
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
 use tspace::scene::gltf::process;
 use tspace::scene::options::Compression;
 use tspace::scene::{Processed, SceneOptions};
 use tspace_testkit::fixtures::{assert_valid_output, glb_json, workspace_root};
-use tspace_testkit::{angle_degrees, reference_is_valid, reference_tangents};
+use tspace_testkit::written::{read_primitives, worst_angle_to_reference};
 
 const CC: &str = "WaterBottle_gltfpack_cc.glb";
 const QUANTIZED: &str = "WaterBottle_gltfpack_quantized.glb";
@@ -87,108 +86,6 @@ fn mesh_views(json: &Value) -> Vec<&Value> {
         }
     }
     out
-}
-
-/// One primitive of a written GLB, read back through tspace's loader (meshopt views decoded):
-/// every attribute's raw elements by name, and the indices.
-struct Read {
-    attributes: Vec<(String, Vec<Vec<u8>>)>,
-    indices: Vec<u32>,
-    positions: Vec<[f32; 3]>,
-    normals: Vec<[f32; 3]>,
-    uvs: Vec<[f32; 2]>,
-    tangents: Vec<[f32; 4]>,
-}
-
-fn read_primitives(bytes: &[u8]) -> Vec<Read> {
-    let limits = LoadLimits {
-        max_buffer_bytes: 1 << 30,
-    };
-    let loaded = load::load(bytes, &NoResources, &limits).unwrap();
-    let root = loaded.doc.root();
-    let buffers = loaded.buffer_slices();
-    let index = |n: Option<&tspace_json::Node>| n.and_then(|n| n.as_u64()).unwrap() as usize;
-    let mut out = Vec::new();
-    for mesh in root.get("meshes").unwrap().as_array().unwrap() {
-        for primitive in mesh.get("primitives").unwrap().as_array().unwrap() {
-            let attributes = primitive.get("attributes").unwrap();
-            let raw = |i: usize| {
-                let described = accessor::accessor_from_json(root, i, &buffers).unwrap();
-                let raw = accessor::read_raw(&described, 1 << 24).unwrap();
-                (0..raw.len())
-                    .map(|e| raw.element(e).unwrap().to_vec())
-                    .collect::<Vec<_>>()
-            };
-            let mut normals = accessor::read_floats_json::<3>(
-                root,
-                index(attributes.get("NORMAL")),
-                &buffers,
-                1 << 24,
-            )
-            .unwrap();
-            for n in &mut normals {
-                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                *n = [n[0] / l, n[1] / l, n[2] / l];
-            }
-            out.push(Read {
-                attributes: attributes
-                    .as_object()
-                    .unwrap()
-                    .iter()
-                    .map(|m| (m.key.clone(), raw(index(Some(&m.value)))))
-                    .collect(),
-                indices: accessor::read_indices_json(
-                    root,
-                    index(primitive.get("indices")),
-                    &buffers,
-                    1 << 24,
-                )
-                .unwrap(),
-                positions: accessor::read_floats_json::<3>(
-                    root,
-                    index(attributes.get("POSITION")),
-                    &buffers,
-                    1 << 24,
-                )
-                .unwrap(),
-                normals,
-                uvs: accessor::read_floats_json::<2>(
-                    root,
-                    index(attributes.get("TEXCOORD_0")),
-                    &buffers,
-                    1 << 24,
-                )
-                .unwrap(),
-                tangents: accessor::read_floats_json::<4>(
-                    root,
-                    index(attributes.get("TANGENT")),
-                    &buffers,
-                    1 << 24,
-                )
-                .unwrap(),
-            });
-        }
-    }
-    out
-}
-
-/// The largest angle between the written tangents and the reference on the decoded geometry.
-fn worst_angle(p: &Read) -> f64 {
-    let reference = reference_tangents(&p.positions, &p.normals, &p.uvs, &p.indices);
-    let mut worst = 0f64;
-    for (corner, r) in reference.iter().enumerate() {
-        let v = p.indices[corner] as usize;
-        if !reference_is_valid(*r, p.normals[v]) {
-            continue;
-        }
-        let (r, ours) = (r.unwrap(), p.tangents[v]);
-        assert_eq!(ours[3], -r[3], "corner {corner}: handedness");
-        worst = worst.max(angle_degrees(
-            [r[0], r[1], r[2]],
-            [ours[0], ours[1], ours[2]],
-        ));
-    }
-    worst
 }
 
 /// The same triangles in the same order, each with its winding (meshoptimizer's triangle codec
@@ -269,7 +166,7 @@ fn gltfpack_cc_comes_back_compressed_exact_and_compact() {
     );
 
     for p in read_primitives(&bytes) {
-        let worst = worst_angle(&p);
+        let worst = worst_angle_to_reference(&p);
         assert!(worst <= 1.0, "{CC}: {worst}°");
     }
     // The NORMAL views are OCTAHEDRAL-filtered, so the new TANGENT takes that representation
@@ -311,7 +208,7 @@ fn none_writes_no_meshopt() {
         processed.report.warnings
     );
     for p in read_primitives(&bytes) {
-        assert!(worst_angle(&p) <= 1.0);
+        assert!(worst_angle_to_reference(&p) <= 1.0);
     }
 }
 
@@ -505,7 +402,7 @@ fn helmet_cc_when_given() {
         assert!(view["extensions"][MESHOPT_EXT].is_object(), "{view}");
     }
     for p in read_primitives(&bytes) {
-        let worst = worst_angle(&p);
+        let worst = worst_angle_to_reference(&p);
         eprintln!("helmet_cc: worst angle to the reference {worst:.3}°");
         assert!(worst <= 1.0);
     }

@@ -454,7 +454,7 @@ pub fn core(data: &[u8]) {
 /// The Draco header of [`draco`]: the declared layout a stream is decoded under.
 const DRACO_HEADER: usize = 9;
 
-/// A `KHR_draco_mesh_compression` stream under a document the first [`DRACO_HEADER`] bytes
+/// A `KHR_draco_mesh_compression` stream under a document the first `DRACO_HEADER` (9) bytes
 /// declare: the Draco ids of POSITION, NORMAL and TEXCOORD_0 (`0xFF`: absent; POSITION always
 /// present), the TEXCOORD_0 component type (by its low two bits: float, normalized u16, normalized
 /// u8, i16), the declared vertex count (u16, little-endian), flags (bit 0: indices, bit 1: u32
@@ -475,7 +475,7 @@ pub fn draco(data: &[u8]) {
     run_scene(InputKind::Glb, &glb, &NoResources, &scene_options(data));
 }
 
-/// How many accessors a [`draco`] input decodes to, or why it does not: lets a test check that
+/// How many accessors a [`draco()`] input decodes to, or why it does not: lets a test check that
 /// the seeds reach the decoder's far side.
 pub fn draco_decoded_accessors(data: &[u8]) -> Result<usize, String> {
     let (header, stream) = data

@@ -17,6 +17,8 @@
 //! - [`process`]: the real `tspace serve` as a child process.
 //! - [`fuzz`]: the fuzz targets' bodies, so `tests/fuzz_replay.rs` replays exactly what the
 //!   fuzzers ran.
+//! - [`written`]: tspace's output read back through its own decoders (meshopt, quantized), and
+//!   its tangents checked against the reference on the written geometry.
 
 pub mod fixtures;
 pub mod fuzz;
@@ -28,6 +30,7 @@ pub mod random_mesh;
 pub mod reference;
 pub mod shapes;
 pub mod validator;
+pub mod written;
 
 pub use fixtures::{assert_valid_output, fixture, glb_json};
 pub use reference::{reference_is_valid, reference_tangents};
