@@ -43,6 +43,7 @@ const FIXTURES: &[(&str, &[&str])] = &[
     ("compressed/WaterBottle_draco.glb", &[]),
     ("compressed/WaterBottle_draco_qlow.glb", &[]),
     ("compressed/WaterBottle_draco_sequential_q16.glb", &[]),
+    ("compressed/WaterBottle_draco_speed0.glb", &[]),
     ("compressed/WaterBottle_gltfpack_cc.glb", &[]),
     ("compressed/WaterBottle_gltfpack_quantized.glb", &[]),
     ("compressed/triangle_quantized_draco.glb", &[]),
