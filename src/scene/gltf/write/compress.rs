@@ -120,19 +120,6 @@ impl Encoded {
             self.count
         )
     }
-
-    /// Why the view has its filter, for the report.
-    pub fn filter_reason(&self) -> &'static str {
-        match (self.mode, self.filter) {
-            (Mode::Attributes, Filter::None) => {
-                "no filter: the filters are lossy, and these values did not come filtered"
-            }
-            (Mode::Attributes, _) => {
-                "values the filter decodes to exactly (checked): a copy of an input view stored with it, or tangents quantized to their normals' octahedral representation"
-            }
-            _ => "indices take no filter",
-        }
-    }
 }
 
 /// Encodes `data` (a view of `shape`) with meshoptimizer, with `prefiltered`'s filter when that
