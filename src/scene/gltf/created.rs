@@ -150,6 +150,19 @@ pub fn buffer_view(
     stride: Option<usize>,
     target: Option<u32>,
 ) -> Result<String, SceneError> {
+    serialized(
+        &typed_view(0, offset, length, stride, target)?,
+        "buffer view",
+    )
+}
+
+fn typed_view(
+    buffer: usize,
+    offset: usize,
+    length: usize,
+    stride: Option<usize>,
+    target: Option<u32>,
+) -> Result<json_buffer::View, SceneError> {
     let target = match target {
         None => None,
         Some(34962) => Some(Checked::Valid(json_buffer::Target::ArrayBuffer)),
@@ -161,8 +174,8 @@ pub fn buffer_view(
             ));
         }
     };
-    let typed = json_buffer::View {
-        buffer: Index::new(0),
+    Ok(json_buffer::View {
+        buffer: index(buffer, "buffer")?,
         byte_length: USize64::from(length),
         byte_offset: Some(USize64::from(offset)),
         byte_stride: stride.map(Stride),
@@ -170,8 +183,59 @@ pub fn buffer_view(
         target,
         extensions: None,
         extras: Default::default(),
+    })
+}
+
+/// A buffer view whose data is meshopt-compressed: `length` bytes at `offset` of the fallback
+/// buffer `buffer`, and `extension` (its `EXT_meshopt_compression` object) saying where the
+/// compressed bytes are.
+pub fn compressed_buffer_view(
+    buffer: usize,
+    (offset, length): (usize, usize),
+    stride: Option<usize>,
+    target: Option<u32>,
+    extension: &impl serde::Serialize,
+) -> Result<String, SceneError> {
+    let mut typed = typed_view(buffer, offset, length, stride, target)?;
+    typed.extensions = Some(gltf_json::extensions::buffer::View {
+        others: meshopt_extension(extension)?,
+    });
+    serialized(&typed, "compressed buffer view")
+}
+
+/// `{"EXT_meshopt_compression": extension}`, as a buffer view's or buffer's `extensions`.
+pub fn meshopt_extensions(extension: &impl serde::Serialize) -> Result<String, SceneError> {
+    serialized(&meshopt_extension(extension)?, "meshopt extension")
+}
+
+fn meshopt_extension(
+    extension: &impl serde::Serialize,
+) -> Result<serde_json::Map<String, Value>, SceneError> {
+    let value = serde_json::to_value(extension).map_err(|e| internal(&e, "meshopt extension"))?;
+    Ok(serde_json::Map::from_iter([(MESHOPT.to_owned(), value)]))
+}
+
+/// The buffer without data of its own that compressed views point into, as the extension asks.
+pub fn fallback_buffer(byte_length: usize) -> Result<String, SceneError> {
+    let typed = gltf_json::Buffer {
+        byte_length: USize64::from(byte_length),
+        name: None,
+        uri: None,
+        extensions: Some(gltf_json::extensions::buffer::Buffer {
+            others: meshopt_extension(&serde_json::json!({"fallback": true}))?,
+        }),
+        extras: Default::default(),
     };
-    serialized(&typed, "buffer view")
+    serialized(&typed, "fallback buffer")
+}
+
+const MESHOPT: &str = "EXT_meshopt_compression";
+
+fn internal(error: &serde_json::Error, what: &str) -> SceneError {
+    SceneError::new(
+        ProblemCode::Internal,
+        format!("tspace could not build a {what}: {error}"),
+    )
 }
 
 /// The output's one buffer, when no input buffer had data to keep its other members.

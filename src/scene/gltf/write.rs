@@ -1122,7 +1122,7 @@ fn append_buffer_views(
         let text = match compressed {
             None => created::buffer_view(offset, length, stride, target)?,
             Some((encoded, fallback)) => {
-                compressed_view_json(fallback, length, stride, target, encoded, offset)
+                compressed_view_json(fallback, length, stride, target, encoded, offset)?
             }
         };
         editor
@@ -1998,23 +1998,14 @@ fn compressed_view_json(
     target: Option<u32>,
     encoded: &Encoded,
     data: usize,
-) -> String {
-    let mut text = format!(
-        "{{\"buffer\":{},\"byteOffset\":{fallback},\"byteLength\":{length}",
-        Packed::FALLBACK
-    );
-    if let Some(stride) = stride {
-        text.push_str(&format!(",\"byteStride\":{stride}"));
-    }
-    if let Some(target) = target {
-        text.push_str(&format!(",\"target\":{target}"));
-    }
-    text.push_str(&format!(
-        ",\"extensions\":{{\"{}\":{}}}}}",
-        compress::EXT,
-        encoded.extension_json(data)
-    ));
-    text
+) -> Result<String, SceneError> {
+    created::compressed_buffer_view(
+        Packed::FALLBACK,
+        (fallback, length),
+        stride,
+        target,
+        &encoded.extension(data),
+    )
 }
 
 /// Drops the orphan views and points each kept one at its place in the packed layout.
@@ -2072,16 +2063,21 @@ fn edit_buffer_views_packed(
                         }
                     }
                     Some(k) => {
-                        let text = packed.fresh[k].1.extension_json(data);
+                        let extension = packed.fresh[k].1.extension(data);
                         match view.get("extensions") {
-                            Some(extensions) if extensions.as_object().is_some() => editor
-                                .set_member(extensions, compress::EXT, text)
-                                .map_err(edit_error)?,
+                            Some(extensions) if extensions.as_object().is_some() => {
+                                let text = created::to_text(&extension).map_err(|e| {
+                                    SceneError::new(ProblemCode::InternalEdit, e.to_string())
+                                })?;
+                                editor
+                                    .set_member(extensions, compress::EXT, text)
+                                    .map_err(edit_error)?
+                            }
                             _ => editor
                                 .set_member(
                                     view,
                                     "extensions",
-                                    format!("{{\"{}\":{text}}}", compress::EXT),
+                                    created::meshopt_extensions(&extension)?,
                                 )
                                 .map_err(edit_error)?,
                         }
@@ -2179,10 +2175,7 @@ fn fallback_buffer(
                 .map_err(edit_error)?;
             sub_editor.render().map_err(edit_error)
         }
-        None => Ok(format!(
-            "{{\"byteLength\":{byte_length},\"extensions\":{{\"{}\":{{\"fallback\":true}}}}}}",
-            compress::EXT
-        )),
+        None => created::fallback_buffer(byte_length),
     }
 }
 

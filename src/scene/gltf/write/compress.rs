@@ -104,21 +104,33 @@ pub struct Encoded {
     pub count: usize,
 }
 
+/// A buffer view's `EXT_meshopt_compression` object, in the extension's member order.
+#[derive(Clone, Debug, serde::Serialize)]
+#[serde(rename_all = "camelCase")]
+pub struct MeshoptView {
+    pub buffer: usize,
+    pub byte_offset: usize,
+    pub byte_length: usize,
+    pub byte_stride: usize,
+    pub mode: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub filter: Option<&'static str>,
+    pub count: usize,
+}
+
 impl Encoded {
     /// The view's `EXT_meshopt_compression` object, its compressed bytes at `offset` of
     /// buffer 0.
-    pub fn extension_json(&self, offset: usize) -> String {
-        let filter = match self.filter {
-            Filter::None => String::new(),
-            f => format!(",\"filter\":\"{}\"", f.name()),
-        };
-        format!(
-            "{{\"buffer\":0,\"byteOffset\":{offset},\"byteLength\":{},\"byteStride\":{},\"mode\":\"{}\"{filter},\"count\":{}}}",
-            self.bytes.len(),
-            self.stride,
-            self.mode.name(),
-            self.count
-        )
+    pub fn extension(&self, offset: usize) -> MeshoptView {
+        MeshoptView {
+            buffer: 0,
+            byte_offset: offset,
+            byte_length: self.bytes.len(),
+            byte_stride: self.stride,
+            mode: self.mode.name(),
+            filter: (self.filter != Filter::None).then(|| self.filter.name()),
+            count: self.count,
+        }
     }
 }
 
