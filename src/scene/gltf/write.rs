@@ -1271,13 +1271,7 @@ fn edit_buffers(
     let root = loaded.doc.root();
     let count = buffers.buffers.len();
     let byte_length = layout.bin.len().max(1);
-    let bin_uri = match format {
-        OutputFormat::Glb => None,
-        OutputFormat::GltfEmbedded => Some(format!(
-            "data:application/octet-stream;base64,{}",
-            base64(&layout.bin)
-        )),
-    };
+    let bin_uri = bin_uri(layout, format);
     let single = count == 1 && buffers.has_data(0) && layout.bin_needed;
     match root.get("buffers") {
         Some(node) if single => {
@@ -1289,18 +1283,7 @@ fn edit_buffers(
         node => {
             let mut entries: Vec<String> = Vec::new();
             if layout.bin_needed {
-                entries.push(merged_buffer(
-                    loaded,
-                    buffers,
-                    byte_length,
-                    bin_uri.as_deref(),
-                )?);
-                let merged_count = (0..count).filter(|&b| buffers.has_data(b)).count();
-                if merged_count > 1 {
-                    warnings.push(format!(
-                        "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
-                    ));
-                }
+                entries.push(merged_entry(loaded, buffers, layout, bin_uri, warnings)?);
             }
             let list = root.get("buffers").and_then(Node::as_array).unwrap_or(&[]);
             for (b, original) in list.iter().enumerate() {
@@ -1318,6 +1301,39 @@ fn edit_buffers(
             }
         }
     }
+}
+
+/// The output buffer's URI: none in a GLB (it is the BIN chunk), a `data:` URI in a `.gltf`.
+fn bin_uri(layout: &Layout, format: OutputFormat) -> Option<String> {
+    match format {
+        OutputFormat::Glb => None,
+        OutputFormat::GltfEmbedded => Some(format!(
+            "data:application/octet-stream;base64,{}",
+            base64(&layout.bin)
+        )),
+    }
+}
+
+/// The entry of the one buffer every input buffer with data is merged into, saying so when more
+/// than one was.
+fn merged_entry(
+    loaded: &Loaded<'_>,
+    buffers: &BufferMap<'_>,
+    layout: &Layout,
+    bin_uri: Option<String>,
+    warnings: &mut Vec<String>,
+) -> Result<String, SceneError> {
+    let byte_length = layout.bin.len().max(1);
+    let entry = merged_buffer(loaded, buffers, byte_length, bin_uri.as_deref())?;
+    let merged_count = (0..buffers.buffers.len())
+        .filter(|&b| buffers.has_data(b))
+        .count();
+    if merged_count > 1 {
+        warnings.push(format!(
+            "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
+        ));
+    }
+    Ok(entry)
 }
 
 /// Sets a buffer's length and URI for the output buffer: no URI in a GLB (it is the BIN chunk),
@@ -2103,29 +2119,10 @@ fn edit_buffers_packed(
     let Some(packed) = &layout.packed else {
         return Ok(());
     };
-    let bin_uri = match format {
-        OutputFormat::Glb => None,
-        OutputFormat::GltfEmbedded => Some(format!(
-            "data:application/octet-stream;base64,{}",
-            base64(&layout.bin)
-        )),
-    };
-    let list = root.get("buffers").and_then(Node::as_array).unwrap_or(&[]);
+    let bin_uri = bin_uri(layout, format);
     let mut entries: Vec<String> = Vec::new();
     if layout.bin_needed {
-        let byte_length = layout.bin.len().max(1);
-        entries.push(merged_buffer(
-            loaded,
-            buffers,
-            byte_length,
-            bin_uri.as_deref(),
-        )?);
-        let merged_count = (0..list.len()).filter(|&b| buffers.has_data(b)).count();
-        if merged_count > 1 {
-            warnings.push(format!(
-                "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
-            ));
-        }
+        entries.push(merged_entry(loaded, buffers, layout, bin_uri, warnings)?);
     }
     if packed.fallback_length > 0 {
         entries.push(fallback_buffer(loaded, buffers, packed.fallback_length)?);
