@@ -369,6 +369,43 @@ fn o_with_two_inputs_is_a_usage_error() {
 }
 
 #[test]
+fn process_in_out_writes_out_or_refuses_when_out_exists() {
+    // glTF-Transform's form: the second path, not there yet, is the output.
+    let t = TempDir::new("in-out");
+    t.copy_fixture("Box", "Box");
+    let out = tspace(t.path(), &["process", "Box/Box.glb", "out.gltf"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(t.path().join("out.gltf").is_file());
+    assert!(!t.path().join("Box/Box.tspace.glb").exists());
+    let written = std::fs::read(t.path().join("out.gltf")).unwrap();
+    assert!(written.starts_with(b"{"), "a .gltf name gives .gltf output");
+
+    // Run again: out.gltf exists now, so it might be an input or a stale output. Refused, with
+    // the two ways to say what is meant, and nothing written.
+    let before = std::fs::read(t.path().join("out.gltf")).unwrap();
+    let again = tspace(t.path(), &["process", "Box/Box.glb", "out.gltf"]);
+    assert_eq!(code(&again), 2, "{}", stderr(&again));
+    let message = stderr(&again);
+    assert!(
+        message.contains("-o out.gltf") && message.contains("--out-dir"),
+        "{message}"
+    );
+    assert_eq!(std::fs::read(t.path().join("out.gltf")).unwrap(), before);
+    assert!(!t.path().join("out.tspace.glb").exists());
+    assert!(!t.path().join("Box/Box.tspace.glb").exists());
+
+    // Said either way, it runs.
+    let with_o = tspace(t.path(), &["process", "Box/Box.glb", "-o", "out.gltf"]);
+    assert_eq!(code(&with_o), 0, "{}", stderr(&with_o));
+    let both = tspace(
+        t.path(),
+        &["process", "Box/Box.glb", "out.gltf", "--out-dir", "both"],
+    );
+    assert_eq!(code(&both), 0, "{}", stderr(&both));
+    assert!(t.path().join("both").is_dir());
+}
+
+#[test]
 fn an_output_never_replaces_an_input() {
     let t = TempDir::new("replace");
     t.copy_fixture("Box", "Box");

@@ -105,6 +105,35 @@ fn plural(n: u64, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
+/// `tspace process IN OUT`, the form glTF-Transform's users type: two paths, neither `-o` nor
+/// `--out-dir`, the first a file and the second a `.glb` or `.gltf` name. When the second does not
+/// exist it can only be meant as the output, and becomes `-o`. When it does exist the line is
+/// ambiguous (two inputs, or the output of an earlier run): refused, naming the two ways to say
+/// it, rather than guessed; guessing "input" would leave a stale output behind and report
+/// success, guessing "output" could overwrite an input.
+fn take_in_out_form(args: &mut ProcessArgs) -> Result<(), String> {
+    let [first, second] = args.inputs.as_slice() else {
+        return Ok(());
+    };
+    let scene_name = second
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"));
+    if args.output.is_some() || args.out_dir.is_some() || !first.is_file() || !scene_name {
+        return Ok(());
+    }
+    if second.exists() {
+        return Err(format!(
+            "{} exists, so it is not clear whether it is a second input or the output; to write the output there, say -o {}; to process both files, add --out-dir DIR",
+            second.display(),
+            second.display()
+        ));
+    }
+    args.output = Some(second.clone());
+    args.inputs.truncate(1);
+    Ok(())
+}
+
 /// `-o` names one output file, so it takes exactly one input, and that a file.
 fn check_single_output(args: &ProcessArgs, named_directory: bool) -> Result<(), String> {
     if args.output.is_none() {
@@ -268,7 +297,10 @@ fn print_summary(summary: &Summary) {
     );
 }
 
-pub(crate) fn process(args: ProcessArgs) -> Exit {
+pub(crate) fn process(mut args: ProcessArgs) -> Exit {
+    if let Err(message) = take_in_out_form(&mut args) {
+        return usage_error("process", message);
+    }
     let named_directory = args.inputs.iter().any(|p| p.is_dir());
     if let Err(message) = check_single_output(&args, named_directory) {
         return usage_error("process", message);

@@ -133,7 +133,8 @@ impl SceneArgs {
 
 #[derive(Debug, Args)]
 struct ProcessArgs {
-    /// Scene files (.glb, .gltf, .obj) or directories to search for them.
+    /// Scene files (.glb, .gltf, .obj) or directories to search for them. `tspace process IN
+    /// OUT` (two paths, the second a .glb or .gltf name that does not exist yet) writes OUT.
     #[arg(value_name = "IN", required = true)]
     inputs: Vec<PathBuf>,
     /// The output file (only with exactly one input file).
