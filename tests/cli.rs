@@ -218,21 +218,34 @@ fn overwrite_regenerates_avocado() {
 }
 
 #[test]
-fn an_obj_without_uvs_needs_the_axis_method() {
+fn an_obj_without_uvs_is_converted_and_skipped_unless_axis() {
     let t = TempDir::new("axis");
     t.copy_fixture("concave_polygon", "c");
-    let out = tspace(t.path(), &["process", "c/concave_polygon.obj"]);
-    assert_eq!(code(&out), 3);
-    let err = stderr(&out);
-    let first = err.lines().next().unwrap();
-    assert!(
-        first.starts_with("tspace: c/concave_polygon.obj: ")
-            && first.ends_with("(obj-without-uvs)"),
-        "{err}"
+    // Like a glTF primitive without UVs: converted, skipped with the reason, exit 0.
+    let out = tspace(
+        t.path(),
+        &[
+            "process",
+            "c/concave_polygon.obj",
+            "--all",
+            "--report",
+            "r.json",
+        ],
     );
-    assert!(first.contains("--method axis"), "{err}");
-    assert!(err.contains("0 files ok, 1 failed"), "{err}");
-    assert!(!t.path().join("c/concave_polygon.tspace.glb").exists());
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let written = t.path().join("c/concave_polygon.tspace.glb");
+    assert!(!has_tangents(&glb_json(&written)));
+    assert_valid(&written);
+    let report = read_json(&t.path().join("r.json"));
+    assert_eq!(report["primitives"][0]["action"], "skipped");
+    assert_eq!(report["primitives"][0]["reason"], "no_texcoords");
+    assert!(
+        report["primitives"][0]["message"]
+            .as_str()
+            .unwrap()
+            .contains("axis method"),
+        "{report}"
+    );
 
     // Its material has no normal map, so with the axis method it is converted and skipped…
     let out = tspace(
@@ -283,20 +296,20 @@ fn a_directory_is_searched_and_mirrored_under_out_dir() {
         t.path(),
         &["process", "in", "--out-dir", "out", "--report", "r.json"],
     );
-    // The OBJ without UVs fails; the others are written all the same.
-    assert_eq!(code(&out), 3, "{}", stderr(&out));
+    // Every file is written, the OBJ without UVs too (converted, its primitive skipped).
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
     let err = stderr(&out);
-    assert_eq!(err.lines().count(), 2, "{err}");
-    assert!(err.contains("3 files ok, 1 failed"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("4 files ok, 0 failed"), "{err}");
     for output in [
         "out/Box/Box.glb",
         "out/deeper/Avocado/Avocado.glb",
         "out/negative_indices/negative_indices.glb",
+        "out/concave_polygon/concave_polygon.glb",
     ] {
         glb_json(&t.path().join(output));
     }
     assert!(!t.path().join("out/.hidden").exists());
-    assert!(!t.path().join("out/concave_polygon").exists());
 
     let report = read_json(&t.path().join("r.json"));
     let entries = report.as_array().unwrap();
@@ -313,14 +326,15 @@ fn a_directory_is_searched_and_mirrored_under_out_dir() {
             "in/negative_indices/negative_indices.obj"
         ]
     );
-    assert_eq!(entries[1]["error"]["code"], "obj-without-uvs");
-    assert!(entries[1].get("output").is_none());
+    // The untextured OBJ converts, its primitive skipped (no normal map, and no UVs).
+    assert_eq!(entries[1]["report"]["summary"]["skipped"], 1);
+    assert!(entries[1].get("output").is_some());
     assert_eq!(entries[3]["report"]["summary"]["generated"], 1);
 
     // Running again over a folder that holds the output folder does not read the outputs.
     let again = tspace(t.path(), &["process", ".", "--out-dir", "out"]);
     assert!(
-        stderr(&again).contains("3 files ok, 1 failed"),
+        stderr(&again).contains("4 files ok, 0 failed"),
         "{}",
         stderr(&again)
     );

@@ -242,14 +242,6 @@ async fn every_error_is_a_problem() {
     .await;
     assert!(body["detail"].as_str().unwrap().contains("Avocado.bin"));
     problem(
-        post(fixture("concave_polygon/concave_polygon.obj"), "model/obj")
-            .await
-            .unwrap(),
-        422,
-        "obj-without-uvs",
-    )
-    .await;
-    problem(
         post(vec![b'v'; 150_000], "model/obj").await.unwrap(),
         413,
         "body-too-large",

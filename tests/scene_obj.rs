@@ -111,18 +111,19 @@ fn ngons_and_negative_indices_come_through() {
 }
 
 #[test]
-fn an_obj_without_uvs_needs_the_axis_method() {
+fn an_obj_without_uvs_is_converted_with_its_primitives_skipped_unless_axis() {
     let obj = fixture("concave_polygon/concave_polygon.obj");
-    let error = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &SceneOptions::default(),
-    )
-    .err()
-    .unwrap();
-    assert_eq!(error.code, "obj-without-uvs");
-    assert!(error.message.contains("axis"), "{}", error.message);
+    let all = SceneOptions {
+        all: true,
+        ..SceneOptions::default()
+    };
+    let skipped = process(InputKind::Obj, &obj, &PartSet::new(), &all).unwrap();
+    let entry = &skipped.report.primitives[0];
+    assert_eq!(
+        (entry.action, entry.reason),
+        ("skipped", Some("no_texcoords"))
+    );
+    assert!(skipped.bytes.is_some());
     let axis = SceneOptions {
         method: Method::Axis,
         ..SceneOptions::default()

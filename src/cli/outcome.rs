@@ -66,16 +66,7 @@ impl Failure {
 
 impl From<SceneError> for Failure {
     fn from(e: SceneError) -> Self {
-        let mut message = e.message;
-        // The scene layer words this for the HTTP query string.
-        if e.code == ProblemCode::ObjWithoutUvs {
-            message = if message.contains("method=axis") {
-                message.replace("method=axis", "--method axis")
-            } else {
-                format!("{message} (--method axis)")
-            };
-        }
-        Failure::bad_input(e.code, message)
+        Failure::bad_input(e.code, e.message)
     }
 }
 

@@ -91,7 +91,6 @@ problem_codes! {
     MissingResource => "missing-resource", Unprocessable, 422, "A file the scene refers to was not supplied";
     RefusedUri => "refused-uri", Unprocessable, 422, "A URI in the scene is refused";
     UnsupportedVersion => "unsupported-version", Unprocessable, 422, "The glTF version is not supported";
-    ObjWithoutUvs => "obj-without-uvs", Unprocessable, 422, "The OBJ has no texture coordinates";
     ObjNotConvertible => "obj-not-convertible", Unprocessable, 422, "The OBJ cannot be converted to glTF";
     InternalEdit => "internal-edit", Internal, 500, "tspace could not edit the document";
     Internal => "internal", Internal, 500, "An internal error occurred";

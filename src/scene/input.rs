@@ -15,7 +15,6 @@ use super::obj::{self, ObjErrorKind};
 use super::obj_gltf::{self, ConvertError, ConvertLimits};
 use super::uri::PartSet;
 use super::{Processed, SceneOptions};
-use tspace_tangent::Method;
 
 /// What kind of file the main input is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -123,7 +122,6 @@ fn process_obj<'a>(
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
     let parsed = parse_obj(main, options)?;
-    refuse_obj_without_uvs(&parsed, options.method)?;
     let mut supplied = Supplied::default();
     let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
     supplied.warnings.extend(parse_warnings(&parsed.warnings));
@@ -162,17 +160,6 @@ fn parse_obj(main: &[u8], options: &SceneOptions) -> Result<obj::Obj, SceneError
         ..obj::Limits::default()
     };
     obj::parse_obj(main, &limits).map_err(obj_error)
-}
-
-/// Tangents follow the texture coordinates; only the axis method does without them.
-fn refuse_obj_without_uvs(parsed: &obj::Obj, method: Method) -> Result<(), SceneError> {
-    if parsed.uvs.is_empty() && method != Method::Axis && parsed.triangle_count() > 0 {
-        return Err(SceneError::new(
-            ProblemCode::ObjWithoutUvs,
-            "the OBJ has no texture coordinates (vt), and tangents follow them; ask for the axis method (method=axis) to get tangents that need none",
-        ));
-    }
-    Ok(())
 }
 
 /// Every `mtllib` the OBJ names, merged into one library. A missing file is a warning (its
