@@ -99,3 +99,33 @@ fn sigterm_under_load_finishes_accepted_work_and_refuses_new() {
         drained_for.as_secs_f64() * 1e3
     );
 }
+
+/// An answered problem leaves a log line with its code, inside the request's span (so with its
+/// id): the response line beside it gives only the status, which several codes share.
+#[test]
+fn a_problem_is_logged_with_its_code_and_request_id() {
+    let server = ServerProcess::start(env!("CARGO_BIN_EXE_tspace"), &[]);
+    let response = server.post("/v1/tangents", b"glTX", "model/gltf-binary");
+    assert!(
+        status_line(&response).starts_with("HTTP/1.1 400"),
+        "{}",
+        status_line(&response)
+    );
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let line = loop {
+        let found = server
+            .logs()
+            .into_iter()
+            .find(|l| l.contains("code=malformed-glb"));
+        match found {
+            Some(line) => break line,
+            None if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(20)),
+            None => panic!("no problem line in {:#?}", server.logs()),
+        }
+    };
+    assert!(
+        line.contains("status=400") && line.contains("id="),
+        "{line}"
+    );
+    server.terminate();
+}

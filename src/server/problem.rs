@@ -71,6 +71,9 @@ impl From<SceneError> for Problem {
 impl IntoResponse for Problem {
     fn into_response(self) -> Response {
         let status = self.status();
+        // Inside the request's span, so the line carries its id; the response line that follows
+        // gives only the status, and several codes share one.
+        tracing::info!(code = %self.code, status = self.status, "problem");
         let body = serde_json::to_vec(&self).unwrap_or_default();
         let mut response = (status, body).into_response();
         let headers = response.headers_mut();
