@@ -127,18 +127,10 @@ pub fn quantize_tangents(
     normals: &[[f32; 3]],
     ty: Snorm,
 ) -> QuantizedTangents {
-    let chosen: Vec<([i32; 3], f64)> = tangents
-        .par_iter()
-        .enumerate()
-        .with_min_len(PARALLEL_CHUNK)
-        .map(|(i, t)| {
-            let normal = normals.get(i).and_then(|&n| direction(n));
-            match direction([t[0], t[1], t[2]]) {
-                Some(tangent) => choose(tangent, normal, ty),
-                None => (axis_across(normal, ty), 180.0),
-            }
-        })
-        .collect();
+    let chosen = per_tangent(tangents, normals, |tangent, normal, _| match tangent {
+        Some(tangent) => choose(tangent, normal, ty),
+        None => (axis_across(normal, ty), 180.0),
+    });
     let mut bytes = Vec::with_capacity(tangents.len() * 4 * ty.size());
     let mut max_added = 0.0f64;
     for ((xyz, added), t) in chosen.into_iter().zip(tangents) {
@@ -170,18 +162,10 @@ pub fn octahedral_tangents(
     ty: Snorm,
 ) -> (QuantizedTangents, Vec<u8>) {
     let stride = 4 * ty.size();
-    let chosen: Vec<([i32; 2], [i32; 3], f64)> = tangents
-        .par_iter()
-        .enumerate()
-        .with_min_len(PARALLEL_CHUNK)
-        .map(|(i, t)| {
-            let normal = normals.get(i).and_then(|&n| direction(n));
-            match direction([t[0], t[1], t[2]]) {
-                Some(tangent) => choose_octahedral(tangent, normal, ty, w_of(t, ty)),
-                None => ([0, 0], [0, 0, ty.max()], 180.0),
-            }
-        })
-        .collect();
+    let chosen = per_tangent(tangents, normals, |tangent, normal, t| match tangent {
+        Some(tangent) => choose_octahedral(tangent, normal, ty, w_of(t, ty)),
+        None => ([0, 0], [0, 0, ty.max()], 180.0),
+    });
     let mut bytes = Vec::with_capacity(tangents.len() * stride);
     let mut stored = Vec::with_capacity(tangents.len() * stride);
     let mut max_added = 0.0f64;
@@ -315,6 +299,24 @@ pub fn quantize_deltas(deltas: &[[f32; 3]], ty: Snorm) -> Option<Vec<u8>> {
 /// Tangents per parallel task: each takes a few hundred nanoseconds, so smaller primitives stay on
 /// the calling thread.
 const PARALLEL_CHUNK: usize = 2048;
+
+/// `choose` for every tangent, given its direction (`None`: it has none) and its normal's, on the
+/// rayon pool for large primitives; results in tangent order.
+fn per_tangent<T: Send>(
+    tangents: &[[f32; 4]],
+    normals: &[[f32; 3]],
+    choose: impl Fn(Option<DVec3>, Option<DVec3>, &[f32; 4]) -> T + Sync,
+) -> Vec<T> {
+    tangents
+        .par_iter()
+        .enumerate()
+        .with_min_len(PARALLEL_CHUNK)
+        .map(|(i, t)| {
+            let normal = normals.get(i).and_then(|&n| direction(n));
+            choose(direction([t[0], t[1], t[2]]), normal, t)
+        })
+        .collect()
+}
 
 /// `w` as exactly ±MAX: +MAX unless `w < 0`.
 fn w_of(t: &[f32; 4], ty: Snorm) -> i32 {

@@ -215,6 +215,11 @@ pub fn encode(data: &[u8], shape: Shape, prefiltered: Option<&Prefiltered>) -> O
 /// Whether tspace's decoder (which follows meshoptimizer's, and the WebAssembly one browsers
 /// run) turns `encoded` back into exactly `expected`.
 fn decodes_to(encoded: &Encoded, expected: &[u8]) -> bool {
+    decode_encoded(encoded, expected.len()).is_some_and(|d| d == expected)
+}
+
+/// `encoded` decoded again by tspace's decoder, at most `max_bytes` of it.
+fn decode_encoded(encoded: &Encoded, max_bytes: usize) -> Option<Vec<u8>> {
     let compressed = tspace_meshopt::Compressed {
         data: &encoded.bytes,
         count: encoded.count,
@@ -222,21 +227,14 @@ fn decodes_to(encoded: &Encoded, expected: &[u8]) -> bool {
         mode: encoded.mode,
         filter: encoded.filter,
     };
-    tspace_meshopt::decode(&compressed, expected.len()).is_ok_and(|d| d == expected)
+    tspace_meshopt::decode(&compressed, max_bytes).ok()
 }
 
 /// Whether a `TRIANGLES` stream decodes to exactly `expected`'s triangles, in order, each with
 /// its winding: meshoptimizer's triangle codec may start a triangle at another of its corners
 /// (it rotates them to match its edge FIFO), as every meshopt-compressed file does.
 fn decodes_to_triangles(encoded: &Encoded, expected: &[u32]) -> bool {
-    let compressed = tspace_meshopt::Compressed {
-        data: &encoded.bytes,
-        count: encoded.count,
-        byte_stride: encoded.stride,
-        mode: encoded.mode,
-        filter: encoded.filter,
-    };
-    let Ok(decoded) = tspace_meshopt::decode(&compressed, expected.len() * encoded.stride) else {
+    let Some(decoded) = decode_encoded(encoded, expected.len() * encoded.stride) else {
         return false;
     };
     let read = |c: &[u8]| match c {
