@@ -13,6 +13,7 @@ use super::gltf::load::{NoResources, Resources};
 use super::gltf::{self, glb};
 use super::obj::{self, ObjErrorKind};
 use super::obj_gltf::{self, ConvertError, ConvertLimits};
+use super::report::Notice;
 use super::uri::PartSet;
 use super::{Processed, SceneOptions};
 
@@ -124,7 +125,7 @@ fn process_obj<'a>(
     let parsed = parse_obj(main, options)?;
     let mut supplied = Supplied::default();
     let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
-    supplied.warnings.extend(parse_warnings(&parsed.warnings));
+    supplied.notices.extend(parse_notices(&parsed.warnings));
     fetch_textures(mtl.as_ref(), resources, &mut supplied);
     let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied)?;
     let mut processed = gltf::process_with(
@@ -138,9 +139,10 @@ fn process_obj<'a>(
     let report = &mut processed.report;
     report.input_format = "obj";
     report.input_bytes = main.len() as u64 + supplied.bytes;
-    // The OBJ's own warnings come first, then the glTF path's.
-    supplied.warnings.append(&mut report.warnings);
-    report.warnings = supplied.warnings;
+    // The OBJ's own notices come first, then the glTF path's.
+    supplied.notices.append(&mut report.notices);
+    report.notices = supplied.notices;
+    report.finish();
     Ok(processed)
 }
 
@@ -150,7 +152,7 @@ fn process_obj<'a>(
 struct Supplied<'a> {
     images: Vec<(String, std::borrow::Cow<'a, [u8]>)>,
     bytes: u64,
-    warnings: Vec<String>,
+    notices: Vec<Notice>,
 }
 
 fn parse_obj(main: &[u8], options: &SceneOptions) -> Result<obj::Obj, SceneError> {
@@ -172,8 +174,11 @@ fn read_material_libraries<'a>(
     let mut mtl: Option<obj::Mtl> = None;
     for name in &parsed.material_libraries {
         let Ok(bytes) = resources.fetch(name) else {
-            supplied.warnings.push(format!(
-                "the OBJ names the material library {name:?}, which was not supplied; its faces get default materials"
+            supplied.notices.push(Notice::new(
+                "mtl_not_supplied",
+                format!(
+                    "the OBJ names the material library {name:?}, which was not supplied; its faces get default materials"
+                ),
             ));
             continue;
         };
@@ -190,40 +195,55 @@ fn read_material_libraries<'a>(
 }
 
 /// What the OBJ parser skipped or repaired, one sentence each.
-fn parse_warnings(w: &obj::Warnings) -> Vec<String> {
-    let mut warnings = Vec::new();
+fn parse_notices(w: &obj::Warnings) -> Vec<Notice> {
+    let mut notices = Vec::new();
     if w.unsupported_statements > 0 {
-        warnings.push(format!(
-            "{} OBJ statements were skipped ({})",
-            w.unsupported_statements,
-            w.unsupported_keywords.join(", ")
+        notices.push(Notice::new(
+            "obj_statements_skipped",
+            format!(
+                "{} OBJ statements were skipped ({})",
+                w.unsupported_statements,
+                w.unsupported_keywords.join(", ")
+            ),
         ));
     }
-    for (count, what) in [
+    for (code, count, what) in [
         (
+            "obj_faces_repaired",
             w.faces_with_partial_uvs,
             "faces had texture coordinates on only some corners; they were dropped for those faces",
         ),
         (
+            "obj_faces_repaired",
             w.faces_with_partial_normals,
             "faces had normals on only some corners; they were dropped for those faces",
         ),
         (
+            "obj_faces_repaired",
             w.faces_too_few_corners,
             "faces had fewer than 3 corners and were skipped",
         ),
         (
+            "obj_faces_repaired",
             w.polygons_fanned,
             "polygons could not be ear-clipped and were triangulated as fans",
         ),
-        (w.lines_skipped, "line statements were skipped"),
-        (w.points_skipped, "point statements were skipped"),
+        (
+            "obj_statements_skipped",
+            w.lines_skipped,
+            "line statements were skipped",
+        ),
+        (
+            "obj_statements_skipped",
+            w.points_skipped,
+            "point statements were skipped",
+        ),
     ] {
         if count > 0 {
-            warnings.push(format!("{count} {what}"));
+            notices.push(Notice::new(code, format!("{count} {what}")));
         }
     }
-    warnings
+    notices
 }
 
 /// The textures the conversion embeds, fetched under the path the MTL wrote. MTL files from
@@ -278,7 +298,7 @@ fn convert_to_glb(
             ConvertError::Json(_) => SceneError::new(ProblemCode::Internal, e.to_string()),
             _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
         })?;
-    supplied.warnings.extend(converted.warnings);
+    supplied.notices.extend(converted.notices);
     glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
         .map_err(|e| SceneError::new(ProblemCode::TooLarge, format!("the converted OBJ {e}")))
 }

@@ -122,6 +122,7 @@ use serde_json::{Map, Value};
 
 use super::gltf::created;
 use super::obj::{Corner, Material, Mtl, Obj, Texture};
+use super::report::Notice;
 use super::uri::PartSet;
 
 /// glTF's `mode` for triangle lists, which every primitive here is.
@@ -176,7 +177,7 @@ pub struct Converted {
     /// Buffer 0, padded with zeros to a multiple of 4 bytes.
     pub bin: Vec<u8>,
     /// What the conversion changed, dropped or could not find, one sentence each.
-    pub warnings: Vec<String>,
+    pub notices: Vec<Notice>,
     pub stats: ConversionStats,
 }
 
@@ -657,31 +658,37 @@ impl<'p> ImageTable<'p> {
 
     /// Warns about the paths that could not be used as they were written, and the images
     /// that could not be embedded.
-    fn warn(&self, warnings: &mut Vec<String>) {
+    fn warn(&self, warnings: &mut Vec<Notice>) {
         if !self.reduced.is_empty() {
-            warnings.push(format!(
+            warnings.push(Notice::new("texture_paths_reduced", format!(
                 "texture paths that are absolute or climb out of their folder, kept as their file \
              name only: {}",
                 name_list(&self.reduced)
-            ));
+            )));
         }
         if !self.unusable.is_empty() {
-            warnings.push(format!(
-                "texture paths without a file name, ignored: {}",
-                name_list(&self.unusable)
+            warnings.push(Notice::new(
+                "texture_paths_unusable",
+                format!(
+                    "texture paths without a file name, ignored: {}",
+                    name_list(&self.unusable)
+                ),
             ));
         }
         if !self.missing.is_empty() {
-            warnings.push(format!(
+            warnings.push(Notice::new("textures_not_supplied", format!(
                 "texture files not supplied, referenced by relative URI instead of embedded: {}",
                 name_list(&self.missing)
-            ));
+            )));
         }
         if !self.unknown_format.is_empty() {
-            warnings.push(format!(
-                "texture files that are not PNG, JPEG or WebP, which glTF cannot embed; \
+            warnings.push(Notice::new(
+                "textures_not_embeddable",
+                format!(
+                    "texture files that are not PNG, JPEG or WebP, which glTF cannot embed; \
              referenced by relative URI: {}",
-                name_list(&self.unknown_format)
+                    name_list(&self.unknown_format)
+                ),
             ));
         }
     }
@@ -804,27 +811,33 @@ fn pbr(m: &Material) -> Pbr {
 }
 
 impl Dropped {
-    fn warn(&self, warnings: &mut Vec<String>) {
+    fn warn(&self, warnings: &mut Vec<Notice>) {
         if self.partial > 0 {
-            warnings.push(format!(
-                "{} triangles had texture coordinates or normals on some corners only; those \
+            warnings.push(Notice::new(
+                "obj_faces_repaired",
+                format!(
+                    "{} triangles had texture coordinates or normals on some corners only; those \
                  attributes were dropped from them",
-                self.partial
+                    self.partial
+                ),
             ));
         }
         if self.normals > 0 {
-            warnings.push(format!(
-                "{} triangles use a normal of zero length or not finite, which glTF does not \
+            warnings.push(Notice::new(
+                "invalid_normals_dropped",
+                format!(
+                    "{} triangles use a normal of zero length or not finite, which glTF does not \
                  allow; they were written without normals (the tangent step generates them)",
-                self.normals
+                    self.normals
+                ),
             ));
         }
         if self.uvs > 0 {
-            warnings.push(format!(
+            warnings.push(Notice::new("invalid_texcoords_dropped", format!(
                 "{} triangles use a texture coordinate that is NaN or infinite; they were written \
                  without texture coordinates",
                 self.uvs
-            ));
+            )));
         }
     }
 }
@@ -838,7 +851,7 @@ struct MaterialTable<'a> {
 fn plan_materials<'a>(
     meshes: &[Mesh<'a>],
     mtl: Option<&'a Mtl>,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> MaterialTable<'a> {
     let mut materials: Vec<MaterialPlan<'_>> = Vec::new();
     let mut material_slots: HashMap<(&str, bool), usize> = HashMap::new();
@@ -876,22 +889,29 @@ fn plan_materials<'a>(
         primitive_materials.push(slots);
     }
     if unnamed_without_mtl {
-        warnings.push(
+        warnings.push(Notice::new(
+            "materials_not_written",
             "the OBJ uses materials (usemtl) but no MTL was given: no materials were written"
                 .to_owned(),
-        );
+        ));
     }
     if !missing_materials.is_empty() {
-        warnings.push(format!(
-            "materials not in the MTL, each given a plain white material of its name: {}",
-            name_list(&missing_materials)
+        warnings.push(Notice::new(
+            "materials_missing",
+            format!(
+                "materials not in the MTL, each given a plain white material of its name: {}",
+                name_list(&missing_materials)
+            ),
         ));
     }
     if !untextured_copies.is_empty() {
-        warnings.push(format!(
-            "materials with textures used by faces without texture coordinates; those faces \
+        warnings.push(Notice::new(
+            "untextured_material_copies",
+            format!(
+                "materials with textures used by faces without texture coordinates; those faces \
              got a copy without textures: {}",
-            name_list(&untextured_copies)
+                name_list(&untextured_copies)
+            ),
         ));
     }
     MaterialTable {
@@ -911,7 +931,7 @@ struct MaterialTextures {
 fn plan_textures<'p>(
     materials: &[MaterialPlan<'_>],
     images: &PartSet<'p>,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> (ImageTable<'p>, Vec<MaterialTextures>) {
     let mut table = ImageTable::default();
     let mut material_textures = Vec::with_capacity(materials.len());
@@ -945,15 +965,21 @@ fn plan_textures<'p>(
     }
     table.warn(warnings);
     if !bad_transforms.is_empty() {
-        warnings.push(format!(
-            "textures with a non-finite -o or -s, written without a transform: {}",
-            name_list(&bad_transforms)
+        warnings.push(Notice::new(
+            "texture_transforms_dropped",
+            format!(
+                "textures with a non-finite -o or -s, written without a transform: {}",
+                name_list(&bad_transforms)
+            ),
         ));
     }
     if !unconverted_maps.is_empty() {
-        warnings.push(format!(
-            "texture maps glTF's core material has no place for, not converted: {}",
-            item_list(&unconverted_maps, unconverted_maps.len())
+        warnings.push(Notice::new(
+            "texture_maps_not_converted",
+            format!(
+                "texture maps glTF's core material has no place for, not converted: {}",
+                item_list(&unconverted_maps, unconverted_maps.len())
+            ),
         ));
     }
     (table, material_textures)
@@ -1093,18 +1119,21 @@ struct Flaws {
 }
 
 impl Flaws {
-    fn warn(&self, warnings: &mut Vec<String>) {
+    fn warn(&self, warnings: &mut Vec<Notice>) {
         if self.nonfinite_positions > 0 {
-            warnings.push(format!(
+            warnings.push(Notice::new("non_finite_positions", format!(
                 "{} vertices have a NaN or infinite position, kept as they are; POSITION min and \
                  max cover the finite values only",
                 self.nonfinite_positions
-            ));
+            )));
         }
         if self.colors_clamped > 0 {
-            warnings.push(format!(
-                "{} vertex colours outside [0, 1] were clamped (a NaN component became 1)",
-                self.colors_clamped
+            warnings.push(Notice::new(
+                "colors_clamped",
+                format!(
+                    "{} vertex colours outside [0, 1] were clamped (a NaN component became 1)",
+                    self.colors_clamped
+                ),
             ));
         }
     }
@@ -1489,7 +1518,7 @@ fn gltf_materials(
     materials: &[MaterialPlan<'_>],
     textures: &[MaterialTextures],
     uses: &mut Extensions,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> Result<Vec<json::Material>, ConvertError> {
     let mut adjusted = Vec::new();
     let mut adjusted_seen = HashSet::new();
@@ -1503,10 +1532,13 @@ fn gltf_materials(
         out.push(material);
     }
     if !adjusted.is_empty() {
-        warnings.push(format!(
-            "materials with values outside [0, 1] (clamped) or not finite (replaced by the \
+        warnings.push(Notice::new(
+            "material_values_adjusted",
+            format!(
+                "materials with values outside [0, 1] (clamped) or not finite (replaced by the \
              default): {}",
-            name_list(&adjusted)
+                name_list(&adjusted)
+            ),
         ));
     }
     Ok(out)
@@ -1832,7 +1864,7 @@ pub fn obj_to_gltf(
     Ok(Converted {
         json,
         bin,
-        warnings,
+        notices: warnings,
         stats,
     })
 }
@@ -1840,6 +1872,12 @@ pub fn obj_to_gltf(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    impl Converted {
+        fn messages(&self) -> Vec<String> {
+            self.notices.iter().map(|n| n.message.clone()).collect()
+        }
+    }
     use crate::scene::gltf::glb;
     use crate::scene::obj::{FaceGroup, Limits, parse_mtl, parse_obj};
     use proptest::prelude::*;
@@ -2109,7 +2147,7 @@ mod tests {
                 assert!(view.get("byteStride").is_none());
             }
         });
-        assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+        assert!(c.messages().is_empty(), "{:?}", c.messages());
         assert_eq!(
             c.stats,
             ConversionStats {
@@ -2237,7 +2275,7 @@ mod tests {
             ]
         );
         assert_eq!(
-            c.warnings,
+            c.messages(),
             ["1 vertex colours outside [0, 1] were clamped (a NaN component became 1)"]
         );
     }
@@ -2357,7 +2395,7 @@ mod tests {
             );
         });
 
-        let joined = c.warnings.join("\n");
+        let joined = c.messages().join("\n");
         for expected in [
             "\"..\\\\normals\\\\n.png\"",
             "not supplied",
@@ -2449,7 +2487,7 @@ mod tests {
             [1.0; 4]
         );
         assert!(
-            c.warnings
+            c.messages()
                 .iter()
                 .any(|w| w.contains("not in the MTL") && w.contains("\"nowhere\""))
         );
@@ -2464,7 +2502,7 @@ mod tests {
         );
         // The three usemtl runs are three primitives even without materials.
         assert_eq!(c.stats.primitives, 3);
-        assert!(c.warnings.iter().any(|w| w.contains("no MTL was given")));
+        assert!(c.messages().iter().any(|w| w.contains("no MTL was given")));
     }
 
     #[test]
@@ -2484,7 +2522,7 @@ mod tests {
             [0.1, 0.2, 0.3, 0.25]
         );
         assert!(
-            c.warnings
+            c.messages()
                 .iter()
                 .any(|w| w.contains("got a copy without textures"))
         );
@@ -2577,7 +2615,7 @@ mod tests {
             }
         });
         assert_eq!((c.stats.images_embedded, c.stats.images_referenced), (2, 3));
-        let joined = c.warnings.join("\n");
+        let joined = c.messages().join("\n");
         for expected in [
             "kept as their file name only: \"C:\\\\Users\\\\me\\\\b 1%.png\", \"/abs/c.webp\"",
             "not supplied, referenced by relative URI instead of embedded: \"b 1%.png\", \
@@ -2661,7 +2699,7 @@ mod tests {
             .bounding_box();
         assert_eq!((bounds.min, bounds.max), ([0.0; 3], [1.0, 1.0, 0.0]));
         assert_eq!(
-            c.warnings,
+            c.messages(),
             [
                 "1 triangles use a normal of zero length or not finite, which glTF does not \
                  allow; they were written without normals (the tangent step generates them)",
@@ -2866,9 +2904,9 @@ mod tests {
             assert_eq!((pbr.metallic_factor(), pbr.roughness_factor()), (0.0, 1.0));
         }
         assert_eq!(c.stats.images_embedded, 1);
-        assert_eq!(c.warnings.len(), 2, "{:?}", c.warnings);
-        assert!(c.warnings[0].contains("use a normal of zero length"));
-        assert!(c.warnings[1].contains("\"wal67ar_small.jpg\", \"drkwood2.jpg\""));
+        assert_eq!(c.messages().len(), 2, "{:?}", c.messages());
+        assert!(c.messages()[0].contains("use a normal of zero length"));
+        assert!(c.messages()[1].contains("\"wal67ar_small.jpg\", \"drkwood2.jpg\""));
     }
 
     #[test]
@@ -2894,7 +2932,7 @@ mod tests {
                 m.pbr_metallic_roughness().base_color_factor(),
                 [0.141176, 0.184314, 0.411765, 1.0]
             );
-            assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+            assert!(c.messages().is_empty(), "{:?}", c.messages());
         }
         if let Some(bytes) = fixture("negative_indices/negative_indices.obj") {
             let obj = parse_obj(&bytes, &Limits::default()).unwrap();

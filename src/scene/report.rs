@@ -1,13 +1,25 @@
 //! The JSON report: per primitive, what was done or skipped and why, the core's diagnostics, and
 //! for kept tangents an audit against MikkTSpace. Field names are snake_case and stable; counts
 //! come with the first few offending indices so that a user can find them in a viewer.
+//!
+//! Counts alone do not say what to do, so every count that is not zero also becomes a
+//! [`Finding`] with a severity and one line of meaning, from one table ([`FindingKind`]): a
+//! pipeline gates on `summary.findings` without knowing which of twenty counts matter.
+//! The report is versioned (`report_version`); the fields version 2 renamed stay, marked
+//! deprecated in `docs/report.md`, until version 3.
 
 use serde::Serialize;
 use tspace_tangent::{Diagnostics, FallbackCounts, Tally};
+use utoipa::ToSchema;
+
+/// The report's shape: raised when a field is renamed or removed, not when one is added.
+pub const REPORT_VERSION: u32 = 2;
 
 /// The report of one scene.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct Report {
+    /// [`REPORT_VERSION`]: 2 added `findings` and renamed `first_corners` to `first`.
+    pub report_version: u32,
     pub tspace_version: &'static str,
     /// `glb`, `gltf` or `obj`.
     pub input_format: &'static str,
@@ -27,12 +39,19 @@ pub struct Report {
     /// Accessors and buffer views the output no longer has because nothing references them
     /// after the split replaced them.
     pub dropped: Dropped,
-    /// Scene-level notes: images that could not be embedded, extensions removed, conversion
-    /// notes for OBJ input.
+    /// Everything worth a look, errors first: each non-zero count of a primitive's diagnostics
+    /// and audit, and each scene-level notice, with its severity and meaning.
+    pub findings: Vec<Finding>,
+    /// Deprecated since report version 2 (the scene-level `findings` carry the same messages
+    /// with a code and a severity); kept until version 3.
     pub warnings: Vec<String>,
+    /// The scene's notices, in the order they were raised; [`Report::finish`] makes them
+    /// findings.
+    #[serde(skip)]
+    pub notices: Vec<Notice>,
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct Summary {
     pub primitives: u64,
     pub generated: u64,
@@ -44,7 +63,10 @@ pub struct Summary {
     pub vertices_added: u64,
     pub fallback_tangents: u64,
     pub handedness_flip_vertices: u64,
+    /// Triangles with no area in space (two corners at one position, or collinear).
     pub degenerate_triangles: u64,
+    /// Triangles with area in space but none in UV space: their tangent direction is undefined.
+    pub zero_uv_area_triangles: u64,
     pub mirrored_uv_triangles: u64,
     /// Audited primitives whose tangents disagree with MikkTSpace (w or more than 1°).
     pub audits_disagreeing: u64,
@@ -52,9 +74,19 @@ pub struct Summary {
     pub mesh_bytes_in: u64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mesh_bytes_out: Option<u64>,
+    /// How many findings of each severity the report lists.
+    pub findings: SeverityCounts,
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+/// Findings counted by severity.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, ToSchema)]
+pub struct SeverityCounts {
+    pub error: u64,
+    pub warning: u64,
+    pub info: u64,
+}
+
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct Dropped {
     pub accessors: u64,
     pub buffer_views: u64,
@@ -66,7 +98,7 @@ pub struct Dropped {
 
 /// Boxed parts keep an entry small when they are absent: a scene may have a hundred thousand
 /// primitives.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct PrimitiveReport {
     pub mesh: usize,
     pub primitive: usize,
@@ -107,7 +139,7 @@ pub struct PrimitiveReport {
 }
 
 /// The core's [`Diagnostics`], for JSON.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct DiagnosticsReport {
     pub method: &'static str,
     pub triangles: u64,
@@ -129,7 +161,7 @@ pub struct DiagnosticsReport {
     pub fallback_tangents: FallbackReport,
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct TallyReport {
     pub count: u64,
     /// The first few indices (triangles or vertices, as the name says), ascending.
@@ -137,10 +169,13 @@ pub struct TallyReport {
     pub first: Vec<u32>,
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct FallbackReport {
     pub count: u64,
-    /// The first few corners (positions in the index list).
+    /// The first few corners (positions in the index list), ascending.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub first: Vec<u32>,
+    /// Deprecated since report version 2: `first`, under the name every other list has.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub first_corners: Vec<u32>,
     pub unassigned: u64,
@@ -151,7 +186,7 @@ pub struct FallbackReport {
 
 /// Tangent deltas computed for morph targets.
 /// How a primitive's geometry is stored in the input and in the output, and what it takes.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct StorageReport {
     /// `none`, `draco` or `meshopt`.
     pub compression_in: &'static str,
@@ -167,7 +202,7 @@ pub struct StorageReport {
 }
 
 /// The component type of a written TANGENT, and for a quantized one what quantizing cost.
-#[derive(Clone, Copy, Debug, Default, Serialize)]
+#[derive(Clone, Copy, Debug, Default, Serialize, ToSchema)]
 pub struct TangentReport {
     /// `float`, or the normals' own `byte` or `short` (normalized, KHR_mesh_quantization).
     pub component_type: &'static str,
@@ -195,7 +230,7 @@ impl TangentReport {
     }
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct MorphReport {
     pub targets: u64,
     /// Targets that got TANGENT deltas (those that move POSITION or NORMAL).
@@ -206,16 +241,22 @@ pub struct MorphReport {
 }
 
 /// Existing tangents compared with what MikkTSpace gives for the same mesh.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct Audit {
     /// `matches` (every w agrees and no angle above 1°), `differs`, or `invalid` (some tangents
-    /// are not unit, not orthogonal to the normal, or not finite).
+    /// break glTF's rules: not unit, not finite, or w not ±1). Tangents not orthogonal to
+    /// their normal are counted in `non_orthogonal` but are not invalid: glTF does not ask
+    /// for it, and renderers orthogonalize.
     pub verdict: &'static str,
     pub corners: u64,
+    /// Corners with the other w or more than 1° off: where a MikkTSpace-baked normal map
+    /// renders wrong.
+    pub corners_disagreeing: u64,
     /// Corners whose w has the other sign from MikkTSpace's: a normal map baked in MikkTSpace
     /// shows inverted bumps there.
     pub w_disagreements: TallyReport,
-    /// Angle between the existing and the MikkTSpace tangent, in degrees, over corners.
+    /// Angle between the existing tangent, made orthogonal to the normal as a renderer does,
+    /// and the MikkTSpace tangent, in degrees, over corners.
     pub angle_median_degrees: f32,
     pub angle_p99_degrees: f32,
     pub angle_max_degrees: f32,
@@ -241,6 +282,7 @@ impl From<&FallbackCounts> for FallbackReport {
     fn from(f: &FallbackCounts) -> Self {
         FallbackReport {
             count: f.corners.count,
+            first: f.corners.first.clone(),
             first_corners: f.corners.first.clone(),
             unassigned: f.unassigned,
             zero_length: f.zero_length,
@@ -286,5 +328,394 @@ impl Report {
     /// The whole report, indented.
     pub fn to_json_pretty(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+}
+
+/// How much a finding matters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Severity {
+    /// Normal for real assets, said so that nothing is hidden (a mirrored UV layout).
+    Info,
+    /// Worth a look: the output is valid, but something will likely show in a render or was
+    /// not carried over (UVs with no area, a missing texture, tangents that disagree).
+    Warning,
+    /// The input breaks glTF's rules where it matters to tangents (normals not unit, values
+    /// not finite, kept tangents invalid): the output there is tspace's best repair.
+    Error,
+}
+
+/// One thing the report wants a reader to see: what, how bad, how many, and where.
+#[derive(Clone, Debug, Serialize, ToSchema)]
+pub struct Finding {
+    /// Stable snake_case code; `docs/report.md` says what to do about each.
+    pub code: &'static str,
+    pub severity: Severity,
+    /// One line: what it means here.
+    pub message: String,
+    /// How many triangles, vertices or corners (as the code says); absent for scene notices.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub count: Option<u64>,
+    /// `[mesh, primitive]`; absent for scene notices.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub primitive: Option<[usize; 2]>,
+}
+
+/// A scene-level notice from reading or writing (a texture not supplied, statements skipped):
+/// a code from [`NOTICES`] and a sentence.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Notice {
+    pub code: &'static str,
+    pub message: String,
+}
+
+impl Notice {
+    pub fn new(code: &'static str, message: impl Into<String>) -> Notice {
+        debug_assert!(
+            NOTICES.iter().any(|(c, _)| *c == code),
+            "{code} is not in NOTICES"
+        );
+        Notice {
+            code,
+            message: message.into(),
+        }
+    }
+}
+
+/// Every scene notice's code and severity, in one table so the docs and tests can list them.
+pub const NOTICES: &[(&str, Severity)] = &[
+    // Reading an OBJ and its MTL.
+    ("mtl_not_supplied", Severity::Warning),
+    ("obj_statements_skipped", Severity::Info),
+    ("obj_faces_repaired", Severity::Warning),
+    ("materials_not_written", Severity::Warning),
+    ("materials_missing", Severity::Warning),
+    ("material_values_adjusted", Severity::Warning),
+    ("untextured_material_copies", Severity::Info),
+    ("texture_paths_reduced", Severity::Info),
+    ("texture_paths_unusable", Severity::Warning),
+    ("textures_not_supplied", Severity::Warning),
+    ("textures_not_embeddable", Severity::Warning),
+    ("texture_transforms_dropped", Severity::Warning),
+    ("texture_maps_not_converted", Severity::Warning),
+    ("invalid_normals_dropped", Severity::Error),
+    ("invalid_texcoords_dropped", Severity::Error),
+    ("non_finite_positions", Severity::Error),
+    ("colors_clamped", Severity::Warning),
+    ("normals_generated", Severity::Info),
+    // Writing glTF.
+    ("image_not_supplied", Severity::Warning),
+    ("image_format_unknown", Severity::Warning),
+    ("draco_removed", Severity::Info),
+    ("output_compressed", Severity::Info),
+    ("buffers_merged", Severity::Info),
+];
+
+/// The severity of a notice's code (an unknown code, which `Notice::new` rules out in tests,
+/// counts as a warning rather than vanish).
+pub fn notice_severity(code: &str) -> Severity {
+    NOTICES
+        .iter()
+        .find(|(c, _)| *c == code)
+        .map_or(Severity::Warning, |(_, s)| *s)
+}
+
+/// The findings a primitive's counts make: code (the report's field name), severity, and what
+/// a non-zero count means.
+const DIAGNOSTIC_FINDINGS: &[(&str, Severity, &str)] = &[
+    (
+        "non_finite_triangles",
+        Severity::Error,
+        "triangles with a NaN or infinite position, normal or UV: their tangents are a fallback",
+    ),
+    (
+        "zero_normals",
+        Severity::Error,
+        "vertices whose normal has zero length: glTF requires unit normals; shading there is undefined",
+    ),
+    (
+        "non_unit_normals",
+        Severity::Error,
+        "vertices whose normal is not unit length: glTF requires unit normals (tangents use them normalized)",
+    ),
+    (
+        "zero_area_triangles",
+        Severity::Warning,
+        "triangles with no area (collinear corners): invisible, but their corners get fallback tangents",
+    ),
+    (
+        "duplicate_position_triangles",
+        Severity::Warning,
+        "triangles with two corners at one position: invisible, but their corners get fallback tangents",
+    ),
+    (
+        "zero_uv_area_triangles",
+        Severity::Warning,
+        "triangles whose UVs have no area: a normal map cannot be oriented on them; check the UV layout",
+    ),
+    (
+        "fallback_tangents",
+        Severity::Warning,
+        "corners MikkTSpace gave no valid tangent (the reference would write a broken one); tspace made a valid one orthogonal to the normal",
+    ),
+    (
+        "mixed_handedness_triangles",
+        Severity::Warning,
+        "triangles whose corners disagree on w (handedness): the normal map shows a seam across them",
+    ),
+    (
+        "mirrored_uv_triangles",
+        Severity::Info,
+        "triangles with mirrored UVs (w = -1): normal for a mirrored layout",
+    ),
+    (
+        "handedness_flip_vertices",
+        Severity::Info,
+        "vertices split because mirrored and unmirrored triangles share them",
+    ),
+];
+
+impl DiagnosticsReport {
+    /// Each count of [`DIAGNOSTIC_FINDINGS`] in turn.
+    fn count(&self, code: &str) -> u64 {
+        match code {
+            "non_finite_triangles" => self.non_finite_triangles.count,
+            "zero_normals" => self.zero_normals.count,
+            "non_unit_normals" => self.non_unit_normals.count,
+            "zero_area_triangles" => self.zero_area_triangles.count,
+            "duplicate_position_triangles" => self.duplicate_position_triangles.count,
+            "zero_uv_area_triangles" => self.zero_uv_area_triangles.count,
+            "fallback_tangents" => self.fallback_tangents.count,
+            "mixed_handedness_triangles" => self.mixed_handedness_triangles.count,
+            "mirrored_uv_triangles" => self.mirrored_uv_triangles.count,
+            "handedness_flip_vertices" => self.handedness_flip_vertices.count,
+            _ => 0,
+        }
+    }
+}
+
+/// What an audit's counts mean for the tangents the file keeps.
+fn audit_findings(audit: &Audit) -> Vec<(&'static str, Severity, u64, String)> {
+    let mut found = Vec::new();
+    let broken = audit.invalid.count + audit.non_unit.count;
+    if broken > 0 {
+        found.push((
+            "audit_invalid",
+            Severity::Error,
+            broken,
+            "vertices whose kept tangent breaks glTF's rules (not unit, not finite, or w not ±1); overwrite=true replaces them".to_owned(),
+        ));
+    }
+    let disagreeing = audit.corners_disagreeing;
+    if disagreeing > 0 {
+        found.push((
+            "audit_differs",
+            Severity::Warning,
+            disagreeing,
+            format!(
+                "corners where the kept tangents disagree with MikkTSpace ({} in w, {} by more than 1° as rendered): a normal map baked in MikkTSpace renders wrong there; overwrite=true replaces them",
+                audit.w_disagreements.count, audit.corners_over_1_degree
+            ),
+        ));
+    }
+    if audit.non_orthogonal.count > 0 {
+        found.push((
+            "audit_non_orthogonal",
+            Severity::Info,
+            audit.non_orthogonal.count,
+            "vertices whose kept tangent is not orthogonal to its normal: glTF does not require it and renderers orthogonalize".to_owned(),
+        ));
+    }
+    found
+}
+
+impl Report {
+    /// Fills `findings`, the summary's counts of them, and the deprecated `warnings` from the
+    /// primitives' counts and the scene's notices. Called when the report is complete, and
+    /// again if notices are added after (an OBJ's own come before the glTF path's).
+    pub fn finish(&mut self) {
+        let notices = &self.notices;
+        let mut findings = Vec::new();
+        for p in &self.primitives {
+            let at = Some([p.mesh, p.primitive]);
+            if let Some(d) = &p.diagnostics {
+                for &(code, severity, meaning) in DIAGNOSTIC_FINDINGS {
+                    let count = d.count(code);
+                    if count > 0 {
+                        findings.push(Finding {
+                            code,
+                            severity,
+                            message: meaning.to_owned(),
+                            count: Some(count),
+                            primitive: at,
+                        });
+                    }
+                }
+            }
+            if let Some(audit) = &p.audit {
+                for (code, severity, count, message) in audit_findings(audit) {
+                    findings.push(Finding {
+                        code,
+                        severity,
+                        message,
+                        count: Some(count),
+                        primitive: at,
+                    });
+                }
+            }
+        }
+        self.warnings = notices.iter().map(|n| n.message.clone()).collect();
+        findings.extend(notices.iter().map(|n| Finding {
+            code: n.code,
+            severity: notice_severity(n.code),
+            message: n.message.clone(),
+            count: None,
+            primitive: None,
+        }));
+        // Errors first; within a severity, the order they were found in.
+        findings.sort_by_key(|f| std::cmp::Reverse(f.severity));
+        let mut counts = SeverityCounts::default();
+        for f in &findings {
+            *match f.severity {
+                Severity::Error => &mut counts.error,
+                Severity::Warning => &mut counts.warning,
+                Severity::Info => &mut counts.info,
+            } += 1;
+        }
+        self.summary.findings = counts;
+        self.findings = findings;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tally(count: u64) -> TallyReport {
+        TallyReport {
+            count,
+            first: vec![0],
+        }
+    }
+
+    #[test]
+    fn findings_come_errors_first_with_counts_and_the_deprecated_warnings_kept() {
+        let mut report = Report::default();
+        report.primitives.push(PrimitiveReport {
+            mesh: 2,
+            primitive: 1,
+            diagnostics: Some(Box::new(DiagnosticsReport {
+                mirrored_uv_triangles: tally(7),
+                zero_uv_area_triangles: tally(3),
+                non_unit_normals: tally(1),
+                ..DiagnosticsReport::default()
+            })),
+            ..PrimitiveReport::default()
+        });
+        report.notices = vec![
+            Notice::new("draco_removed", "gone"),
+            Notice::new("image_not_supplied", "images[0] missing"),
+        ];
+        report.finish();
+        let seen: Vec<_> = report
+            .findings
+            .iter()
+            .map(|f| (f.code, f.severity, f.count, f.primitive))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                ("non_unit_normals", Severity::Error, Some(1), Some([2, 1])),
+                (
+                    "zero_uv_area_triangles",
+                    Severity::Warning,
+                    Some(3),
+                    Some([2, 1])
+                ),
+                ("image_not_supplied", Severity::Warning, None, None),
+                (
+                    "mirrored_uv_triangles",
+                    Severity::Info,
+                    Some(7),
+                    Some([2, 1])
+                ),
+                ("draco_removed", Severity::Info, None, None),
+            ]
+        );
+        assert_eq!(
+            report.summary.findings,
+            SeverityCounts {
+                error: 1,
+                warning: 2,
+                info: 2
+            }
+        );
+        assert_eq!(report.warnings, ["gone", "images[0] missing"]);
+        // Finishing again (an OBJ adds its own notices after the glTF path) does not double.
+        report.finish();
+        assert_eq!(report.findings.len(), 5);
+    }
+
+    #[test]
+    fn every_diagnostic_finding_reads_its_own_count() {
+        for &(code, _, meaning) in DIAGNOSTIC_FINDINGS {
+            let json = serde_json::to_value(DiagnosticsReport::default()).unwrap();
+            assert!(
+                json.get(code).is_some(),
+                "{code} is not a diagnostics field"
+            );
+            assert!(!meaning.is_empty());
+        }
+        let mut d = DiagnosticsReport::default();
+        d.fallback_tangents.count = 4;
+        d.handedness_flip_vertices.count = 5;
+        assert_eq!(d.count("fallback_tangents"), 4);
+        assert_eq!(d.count("handedness_flip_vertices"), 5);
+    }
+
+    #[test]
+    fn a_non_orthogonal_audit_is_information_and_an_invalid_one_an_error() {
+        let tilted = Audit {
+            verdict: "matches",
+            non_orthogonal: tally(9),
+            ..Audit::default()
+        };
+        let found: Vec<_> = audit_findings(&tilted).iter().map(|f| (f.0, f.1)).collect();
+        assert_eq!(found, [("audit_non_orthogonal", Severity::Info)]);
+        let broken = Audit {
+            verdict: "invalid",
+            corners_disagreeing: 3,
+            invalid: tally(2),
+            ..Audit::default()
+        };
+        let found: Vec<_> = audit_findings(&broken)
+            .iter()
+            .map(|f| (f.0, f.1, f.2))
+            .collect();
+        assert_eq!(
+            found,
+            [
+                ("audit_invalid", Severity::Error, 2),
+                ("audit_differs", Severity::Warning, 3)
+            ]
+        );
+    }
+
+    #[test]
+    fn notice_codes_are_unique_and_documented() {
+        let docs = include_str!("../../docs/report.md");
+        for (i, (code, _)) in NOTICES.iter().enumerate() {
+            assert!(!NOTICES[..i].iter().any(|(c, _)| c == code), "{code} twice");
+            assert!(
+                docs.contains(&format!("`{code}`")),
+                "{code} not in docs/report.md"
+            );
+        }
+        for &(code, _, _) in DIAGNOSTIC_FINDINGS {
+            assert!(
+                docs.contains(&format!("`{code}`")),
+                "{code} not in docs/report.md"
+            );
+        }
     }
 }

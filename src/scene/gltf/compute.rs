@@ -358,6 +358,23 @@ fn angle_degrees(a: [f32; 3], b: [f32; 3]) -> f32 {
     cos.clamp(-1.0, 1.0).acos().to_degrees()
 }
 
+/// A kept tangent as a renderer uses it: made orthogonal to the normal (Gram-Schmidt), as the
+/// glTF sample viewer's shaders and MikkTSpace's own output are. Comparing the raw vector would
+/// count the tilt that a renderer removes as disagreement. Without a usable normal it stays.
+fn as_rendered(t: [f32; 3], normal: Option<&[f32; 3]>) -> [f32; 3] {
+    let Some(n) = normal else { return t };
+    let nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    if nn <= 0.0 || !nn.is_finite() {
+        return t;
+    }
+    let along = (t[0] * n[0] + t[1] * n[1] + t[2] * n[2]) / nn;
+    [
+        t[0] - along * n[0],
+        t[1] - along * n[1],
+        t[2] - along * n[2],
+    ]
+}
+
 /// Compares a primitive's own tangents with MikkTSpace's.
 pub fn audit(existing: &[[f32; 4]], computed: &Computed, quantized: bool) -> Result<Audit, String> {
     let geometry = &computed.geometry;
@@ -392,15 +409,24 @@ pub fn audit(existing: &[[f32; 4]], computed: &Computed, quantized: bool) -> Res
     let corners = geometry.triangle_count() * 3;
     let mut angles = Vec::with_capacity(corners);
     let mut w_disagreements = Tally::default();
+    let mut corners_disagreeing = 0u64;
     for corner in 0..corners {
         let Some(e) = existing.get(geometry.corner_vertex(corner)) else {
             continue;
         };
         let m = computed.tangents.corner_tangent(corner);
-        if (e[3] < 0.0) != (m[3] < 0.0) {
+        let other_w = (e[3] < 0.0) != (m[3] < 0.0);
+        if other_w {
             w_disagreements.add(corner as u32);
         }
-        angles.push(angle_degrees([e[0], e[1], e[2]], [m[0], m[1], m[2]]));
+        let vertex = geometry.corner_vertex(corner);
+        let normal = geometry.normals.as_ref().and_then(|n| n.get(vertex));
+        let seen = as_rendered([e[0], e[1], e[2]], normal);
+        let angle = angle_degrees(seen, [m[0], m[1], m[2]]);
+        if other_w || angle > 1.0 {
+            corners_disagreeing += 1;
+        }
+        angles.push(angle);
     }
     let mut sorted = angles;
     sorted.sort_unstable_by(f32::total_cmp);
@@ -412,9 +438,11 @@ pub fn audit(existing: &[[f32; 4]], computed: &Computed, quantized: bool) -> Res
         sorted.get(i).copied().unwrap_or(0.0)
     };
     let over_1 = sorted.iter().filter(|&&a| a > 1.0).count() as u64;
-    let verdict = if !invalid.is_empty() || !non_unit.is_empty() || !non_orthogonal.is_empty() {
+    // glTF asks tangents to be unit with w = ±1, not orthogonal to the normal (renderers
+    // orthogonalize), so non_orthogonal alone is counted but is no verdict.
+    let verdict = if !invalid.is_empty() || !non_unit.is_empty() {
         "invalid"
-    } else if !w_disagreements.is_empty() || over_1 > 0 {
+    } else if corners_disagreeing > 0 {
         "differs"
     } else {
         "matches"
@@ -422,6 +450,7 @@ pub fn audit(existing: &[[f32; 4]], computed: &Computed, quantized: bool) -> Res
     Ok(Audit {
         verdict,
         corners: corners as u64,
+        corners_disagreeing,
         w_disagreements: TallyReport::from(&w_disagreements),
         angle_median_degrees: at(0.5),
         angle_p99_degrees: at(0.99),
@@ -436,6 +465,53 @@ pub fn audit(existing: &[[f32; 4]], computed: &Computed, quantized: bool) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A quad in the XY plane facing +Z, UVs along X and Y: MikkTSpace's tangents are +X.
+    fn quad() -> Computed {
+        let geometry = Geometry {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 0.0],
+            ],
+            normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
+            uvs: Some(vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]]),
+            indices: Some(vec![0, 1, 2, 0, 2, 3]),
+        };
+        let tangents = tangent::generate(&geometry.input(), &Options::default()).unwrap();
+        Computed {
+            geometry,
+            tangents,
+            target_deltas: vec![],
+            morph_handedness_changes: 0,
+        }
+    }
+
+    #[test]
+    fn audit_compares_tangents_as_rendered_and_tilt_alone_is_not_invalid() {
+        let computed = quad();
+        let reference = computed.tangents.corner_tangent(0);
+        assert!((reference[0] - 1.0).abs() < 1e-6, "{reference:?}");
+        // Tilted 20° out of the surface toward the normal: a renderer's Gram-Schmidt step
+        // removes the tilt, so it matches, but it is counted as not orthogonal.
+        let (s, c) = 20f32.to_radians().sin_cos();
+        let tilted = vec![[c, 0.0, s, reference[3]]; 4];
+        let found = audit(&tilted, &computed, false).unwrap();
+        assert_eq!(found.verdict, "matches");
+        assert_eq!(found.corners_disagreeing, 0);
+        assert_eq!(found.non_orthogonal.count, 4);
+        // Turned 20° within the surface, and one vertex of the other handedness: differs.
+        let mut turned = vec![[c, s, 0.0, reference[3]]; 4];
+        turned[3][3] = -reference[3];
+        let found = audit(&turned, &computed, false).unwrap();
+        assert_eq!(found.verdict, "differs");
+        assert_eq!(found.corners_disagreeing, 6);
+        assert_eq!(found.w_disagreements.count, 1);
+        // Not unit: invalid, whatever the angles.
+        let long = vec![[2.0, 0.0, 0.0, reference[3]]; 4];
+        assert_eq!(audit(&long, &computed, false).unwrap().verdict, "invalid");
+    }
 
     #[test]
     fn strips_and_fans_unroll_with_consistent_winding() {

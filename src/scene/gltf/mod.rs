@@ -105,6 +105,7 @@ pub fn process_with<'a>(
         &mut report,
     )?;
     report_storage(&mut report, root, bytes.as_deref(), options.format)?;
+    report.finish();
     Ok(Processed { bytes, report })
 }
 
@@ -284,6 +285,7 @@ fn report_header(bytes: &[u8], loaded: &load::Loaded<'_>, options: &SceneOptions
         .map(|b| b.bytes.len() as u64)
         .sum::<u64>();
     Report {
+        report_version: crate::scene::report::REPORT_VERSION,
         tspace_version: env!("CARGO_PKG_VERSION"),
         input_format: match loaded.container {
             load::Container::Glb => "glb",
@@ -463,6 +465,7 @@ fn add_totals(report: &mut Report, computed: &[Computed], edits: &Edits) {
         summary.handedness_flip_vertices += d.handedness_flip_vertices.count;
         summary.degenerate_triangles +=
             d.duplicate_position_triangles.count + d.zero_area_triangles.count;
+        summary.zero_uv_area_triangles += d.zero_uv_area_triangles.count;
         summary.mirrored_uv_triangles += d.mirrored_uv_triangles.count;
         if edits.job_refs.contains_key(&j) {
             summary.vertices_added += d.vertices_added;
@@ -495,7 +498,7 @@ fn write_scene<'a>(
         let written = write::write(loaded, changes, options.format, options.compress, resources)?;
         report.input_bytes += written.embedded_image_bytes;
         report.dropped = written.dropped;
-        report.warnings.extend(written.warnings);
+        report.notices.extend(written.notices);
         written.bytes
     };
     report.output_format = Some(options.format.name());

@@ -27,7 +27,7 @@ use super::refs::{self, Owner};
 use crate::scene::OutputFormat;
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::options::Compression;
-use crate::scene::report::Dropped;
+use crate::scene::report::{Dropped, Notice};
 use crate::scene::uri;
 use compress::{Encoded, Output, Prefiltered, Shape};
 use rayon::prelude::*;
@@ -414,7 +414,7 @@ pub struct Written {
     /// Bytes of external images the output now embeds.
     pub embedded_image_bytes: u64,
     pub dropped: Dropped,
-    pub warnings: Vec<String>,
+    pub notices: Vec<Notice>,
     /// Every view the output stores with meshopt compression that this write encoded:
     /// `(output view index, mode, filter)`, the filter `None` when there is none.
     pub compressed_views: Vec<(usize, &'static str, Option<&'static str>)>,
@@ -532,9 +532,9 @@ pub fn write(
         .map(|p| p.compressed_views(&numbering))
         .unwrap_or_default();
     if !compressed_views.is_empty() {
-        warnings.push(describe_compression(
-            &compressed_views,
-            layout.packed.as_ref(),
+        warnings.push(Notice::new(
+            "output_compressed",
+            describe_compression(&compressed_views, layout.packed.as_ref()),
         ));
     }
     let json_text = editor.render().map_err(edit_error)?;
@@ -549,7 +549,7 @@ pub fn write(
         bytes,
         embedded_image_bytes: images.external_bytes,
         dropped,
-        warnings,
+        notices: warnings,
         compressed_views,
     })
 }
@@ -814,7 +814,7 @@ struct Images {
 /// A GLB must carry its images, so external ones (and `data:` URIs, which draw a validator
 /// warning in a GLB) become buffer views. An image that was not supplied, or is not a format
 /// glTF knows, stays a reference, with a warning.
-fn embed_images(root: &Node, resources: &dyn Resources<'_>, warnings: &mut Vec<String>) -> Images {
+fn embed_images(root: &Node, resources: &dyn Resources<'_>, warnings: &mut Vec<Notice>) -> Images {
     let mut images = Images::default();
     for (i, image) in root
         .get("images")
@@ -832,9 +832,9 @@ fn embed_images(root: &Node, resources: &dyn Resources<'_>, warnings: &mut Vec<S
             None => (resources.fetch(u), true),
         };
         let Ok(bytes) = fetched else {
-            warnings.push(format!(
+            warnings.push(Notice::new("image_not_supplied", format!(
                 "images[{i}] refers to {u:?}, which was not supplied; the GLB keeps the reference, so that file must travel with it"
-            ));
+            )));
             continue;
         };
         let declared = image
@@ -848,9 +848,9 @@ fn embed_images(root: &Node, resources: &dyn Resources<'_>, warnings: &mut Vec<S
                 _ => None,
             });
         let Some(mime) = declared.or_else(|| sniff_image(&bytes)) else {
-            warnings.push(format!(
+            warnings.push(Notice::new("image_format_unknown", format!(
                 "images[{i}] ({u}) is not PNG, JPEG, WebP or KTX2 by its first bytes; it stays an external reference"
-            ));
+            )));
             continue;
         };
         if external {
@@ -1164,7 +1164,7 @@ fn edit_primitives(
     root: &Node,
     numbering: &Numbering,
     changes: &Changes,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
     let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
     let mut draco_left = false;
@@ -1197,16 +1197,14 @@ fn edit_primitives(
 fn unlist_draco(
     editor: &mut Editor<'_, '_>,
     root: &Node,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
     let mut listed = false;
     for list in ["extensionsUsed", "extensionsRequired"] {
         listed |= unlist_extension(editor, root, list, "KHR_draco_mesh_compression")?;
     }
     if listed {
-        warnings.push(
-            "KHR_draco_mesh_compression was removed: every primitive that had it now carries tangents and is written uncompressed (encoding Draco again would quantize it again)".into(),
-        );
+        warnings.push(Notice::new("draco_removed", "KHR_draco_mesh_compression was removed: every primitive that had it now carries tangents and is written uncompressed (encoding Draco again would quantize it again)"));
     }
     Ok(())
 }
@@ -1266,7 +1264,7 @@ fn edit_buffers(
     buffers: &BufferMap<'_>,
     layout: &Layout,
     format: OutputFormat,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
     let root = loaded.doc.root();
     let count = buffers.buffers.len();
@@ -1321,7 +1319,7 @@ fn merged_entry(
     buffers: &BufferMap<'_>,
     layout: &Layout,
     bin_uri: Option<String>,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> Result<String, SceneError> {
     let byte_length = layout.bin.len().max(1);
     let entry = merged_buffer(loaded, buffers, byte_length, bin_uri.as_deref())?;
@@ -1329,9 +1327,9 @@ fn merged_entry(
         .filter(|&b| buffers.has_data(b))
         .count();
     if merged_count > 1 {
-        warnings.push(format!(
+        warnings.push(Notice::new("buffers_merged", format!(
             "{merged_count} buffers were merged into one; only the first one's name and extras are kept"
-        ));
+        )));
     }
     Ok(entry)
 }
@@ -2113,7 +2111,7 @@ fn edit_buffers_packed(
     buffers: &BufferMap<'_>,
     layout: &Layout,
     format: OutputFormat,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
     let root = loaded.doc.root();
     let Some(packed) = &layout.packed else {
