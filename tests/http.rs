@@ -761,3 +761,66 @@ async fn a_scene_holding_the_boundary_stays_one_part() {
     assert!(parts[1].1 == plain, "the scene part is the whole scene");
     running.shutdown().await.unwrap();
 }
+
+/// Issue 17's messages: a multipart upload whose scene part is an image is told which part it
+/// was, not to "send multipart"; a buffer part under the wrong name is named, and a name that
+/// differs only in case is pointed out.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn upload_mistakes_are_named_in_the_message() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let http = client();
+    let png = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR".to_vec();
+    let form = Form::new().part(
+        "file",
+        Part::bytes(png)
+            .file_name("texture.png")
+            .mime_str("image/png")
+            .unwrap(),
+    );
+    let response = http
+        .post(format!("{base}/v1/tangents"))
+        .multipart(form)
+        .send()
+        .await
+        .unwrap();
+    let body = problem(response, 415, "unsupported-media-type").await;
+    let detail = body["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("the part \"file\" (\"texture.png\")") && detail.contains("image/png"),
+        "{detail}"
+    );
+    assert!(!detail.contains("multipart/form-data"), "{detail}");
+
+    for (wrong, hint) in [
+        ("avocado.bin", Some("\"avocado.bin\" differs only in case")),
+        ("Avocado_v2.bin", None),
+    ] {
+        let form = Form::new()
+            .part(
+                "file",
+                Part::bytes(fixture("Avocado/Avocado.gltf")).file_name("Avocado.gltf"),
+            )
+            .part(
+                "bin",
+                Part::bytes(fixture("Avocado/Avocado.bin")).file_name(wrong),
+            );
+        let response = http
+            .post(format!("{base}/v1/tangents"))
+            .multipart(form)
+            .send()
+            .await
+            .unwrap();
+        let body = problem(response, 422, "missing-resource").await;
+        let detail = body["detail"].as_str().unwrap();
+        assert!(
+            detail.contains("\"Avocado.bin\"") && detail.contains(&format!("named \"{wrong}\"")),
+            "{detail}"
+        );
+        assert_eq!(
+            hint.is_some_and(|h| detail.contains(h)),
+            hint.is_some(),
+            "{detail}"
+        );
+    }
+    running.shutdown().await.unwrap();
+}

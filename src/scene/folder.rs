@@ -6,7 +6,7 @@
 //! are read. The HTTP server never uses this: an upload's URIs resolve only to its own parts.
 
 use super::gltf::load::Resources;
-use super::uri::{PartSet, Refusal, UriError, UriKind, classify};
+use super::uri::{LookedIn, PartSet, Refusal, UriError, UriKind, classify};
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
@@ -43,7 +43,7 @@ impl Folder {
         };
         let missing = || UriError::MissingPart {
             uri: uri.to_owned(),
-            available: 0,
+            looked_in: LookedIn::Folder,
         };
         let relative = match classify(uri) {
             UriKind::Relative(path) => path,
@@ -62,9 +62,9 @@ impl Folder {
             return Err(refused(Refusal::NotAFile));
         }
         if metadata.len() > self.max_file_bytes {
-            return Err(UriError::MissingPart {
-                uri: format!("{uri} (larger than the {} byte limit)", self.max_file_bytes),
-                available: 0,
+            return Err(UriError::FileTooLarge {
+                uri: uri.to_owned(),
+                limit: self.max_file_bytes,
             });
         }
         std::fs::read(&real).map_err(|_| missing())

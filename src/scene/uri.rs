@@ -47,8 +47,10 @@ pub enum UriError {
     /// `=` padding that is incomplete, too long, or followed by data; or a length that cannot
     /// be base64 (one character left over).
     BadBase64Length { length: usize },
-    /// No caller-supplied part matches this URI.
-    MissingPart { uri: String, available: usize },
+    /// Nothing supplied matches this URI.
+    MissingPart { uri: String, looked_in: LookedIn },
+    /// The file a URI names is larger than one input file may be.
+    FileTooLarge { uri: String, limit: u64 },
     /// Two caller-supplied parts with one name.
     DuplicatePart { name: String },
     /// The URI may not be resolved (see [`Refusal`]).
@@ -79,11 +81,36 @@ impl fmt::Display for UriError {
                 "{length} characters of base64 data cannot be decoded: the padding is incomplete \
                  or misplaced, or one character is left over"
             ),
-            UriError::MissingPart { uri, available } => write!(
+            UriError::MissingPart { uri, looked_in } => {
+                write!(f, "the file refers to {uri:?}, ")?;
+                match looked_in {
+                    LookedIn::Nothing => write!(
+                        f,
+                        "which was not supplied (the scene came with no files beside it)"
+                    ),
+                    LookedIn::Folder => write!(f, "which is not a file in the scene's folder"),
+                    LookedIn::Parts(names) if names.is_empty() => write!(
+                        f,
+                        "which was not supplied: the upload has no part but the scene; send \
+                         multipart/form-data with a part whose file name is {uri:?}"
+                    ),
+                    LookedIn::Parts(names) => {
+                        write!(
+                            f,
+                            "which was not supplied: the other parts are named {} (a part's \
+                             file name, else its field name, must be the URI, percent-decoded)",
+                            quoted_list(names)
+                        )?;
+                        match names.iter().find(|n| n.eq_ignore_ascii_case(uri)) {
+                            Some(near) => write!(f, "; {near:?} differs only in case"),
+                            None => Ok(()),
+                        }
+                    }
+                }
+            }
+            UriError::FileTooLarge { uri, limit } => write!(
                 f,
-                "the file refers to {uri:?}, which was not supplied ({available} part{} supplied; \
-                 parts are matched by name, percent-decoded)",
-                if *available == 1 { " was" } else { "s were" }
+                "the file refers to {uri:?}, which is larger than the {limit} byte limit for one file"
             ),
             UriError::DuplicatePart { name } => {
                 write!(f, "two supplied parts are both named {name:?}")
@@ -96,6 +123,32 @@ impl fmt::Display for UriError {
 }
 
 impl std::error::Error for UriError {}
+
+/// Where a missing URI was looked for, so the message can say what was there instead.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LookedIn {
+    /// Nowhere: the scene has nothing beside it (converted, or read from stdin).
+    Nothing,
+    /// The scene file's folder (the command line).
+    Folder,
+    /// An upload's parts other than the scene, by name.
+    Parts(Vec<String>),
+}
+
+/// `"a", "b", "c" and 4 more`: enough names to spot a typo without flooding one line.
+fn quoted_list(names: &[String]) -> String {
+    const SHOWN: usize = 5;
+    let mut list = names
+        .iter()
+        .take(SHOWN)
+        .map(|n| format!("{n:?}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > SHOWN {
+        list.push_str(&format!(" and {} more", names.len() - SHOWN));
+    }
+    list
+}
 
 /// Why [`classify`] will not let a URI be resolved against a folder.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -401,7 +454,7 @@ impl<'a> PartSet<'a> {
         }
         let missing = || UriError::MissingPart {
             uri: uri.to_owned(),
-            available: self.parts.len(),
+            looked_in: LookedIn::Parts(self.parts.iter().map(|(n, _)| n.clone()).collect()),
         };
         let Ok(decoded) = percent_decode(uri) else {
             return Err(missing());
@@ -700,7 +753,7 @@ mod tests {
             err,
             UriError::MissingPart {
                 uri: "missing%20one.bin".into(),
-                available: 4
+                looked_in: LookedIn::Parts(parts.names().map(str::to_owned).collect()),
             }
         );
         assert!(err.to_string().contains("\"missing%20one.bin\""), "{err}");
@@ -756,5 +809,28 @@ mod tests {
             }
             let _ = decode_base64(text.as_bytes());
         }
+    }
+
+    #[test]
+    fn a_missing_file_says_where_it_was_looked_for_and_what_was_there() {
+        let missing = |looked_in| {
+            UriError::MissingPart {
+                uri: "Avocado.bin".into(),
+                looked_in,
+            }
+            .to_string()
+        };
+        assert!(missing(LookedIn::Folder).ends_with("which is not a file in the scene's folder"));
+        assert!(missing(LookedIn::Nothing).contains("no files beside it"));
+        assert!(missing(LookedIn::Parts(vec![])).contains("has no part but the scene"));
+        let names: Vec<String> = (0..7).map(|i| format!("part{i}.bin")).collect();
+        let many = missing(LookedIn::Parts(names));
+        assert!(many.contains("\"part4.bin\" and 2 more"), "{many}");
+        assert!(!many.contains("part5"), "{many}");
+        let near = missing(LookedIn::Parts(vec!["AVOCADO.BIN".into()]));
+        assert!(
+            near.ends_with("; \"AVOCADO.BIN\" differs only in case"),
+            "{near}"
+        );
     }
 }

@@ -57,7 +57,51 @@ fn media_type(headers: &HeaderMap) -> Option<String> {
         })
 }
 
-fn kind_of(declared: Option<&str>, name: Option<&str>, bytes: &[u8]) -> Result<InputKind, Problem> {
+/// Why a body or part is not taken as a scene.
+enum NotAScene {
+    /// Its declared media type is some other kind of file (`image/png`).
+    Declared(String),
+    /// Nothing declared, named or sniffed says GLB, glTF or OBJ.
+    Unrecognized,
+}
+
+impl NotAScene {
+    /// For a raw body: what to send instead, multipart included.
+    fn of_body(self) -> Problem {
+        let detail = match self {
+            NotAScene::Declared(other) => format!(
+                "{other} is not a scene; send model/gltf-binary, model/gltf+json, model/obj, multipart/form-data, or application/octet-stream to have the bytes sniffed"
+            ),
+            NotAScene::Unrecognized => "the body is neither GLB, glTF JSON nor OBJ text".to_owned(),
+        };
+        Problem::new(ProblemCode::UnsupportedMediaType, detail)
+    }
+
+    /// For a multipart upload's scene part: the body-level advice ("send multipart") would
+    /// tell a user to do what they did, so say which part it was and what it must be.
+    fn of_part(self, field_name: &str, file_name: Option<&str>) -> Problem {
+        let part = match file_name {
+            Some(file) => format!("the part {field_name:?} ({file:?})"),
+            None => format!("the part {field_name:?}"),
+        };
+        let what = match self {
+            NotAScene::Declared(media_type) => format!("{media_type}, not a scene"),
+            NotAScene::Unrecognized => "neither GLB, glTF JSON nor OBJ text".to_owned(),
+        };
+        Problem::new(
+            ProblemCode::UnsupportedMediaType,
+            format!(
+                "{part} is taken as the scene, but it is {what}: send the GLB, .gltf or OBJ as the part named file, and its buffers, images and MTL files as further parts named as the scene refers to them"
+            ),
+        )
+    }
+}
+
+fn kind_of(
+    declared: Option<&str>,
+    name: Option<&str>,
+    bytes: &[u8],
+) -> Result<InputKind, NotAScene> {
     if let Some(kind) = declared.and_then(InputKind::from_media_type) {
         return Ok(kind);
     }
@@ -66,21 +110,9 @@ fn kind_of(declared: Option<&str>, name: Option<&str>, bytes: &[u8]) -> Result<I
     }
     match declared {
         None | Some("application/octet-stream" | "text/plain" | "") => {}
-        Some(other) => {
-            return Err(Problem::new(
-                ProblemCode::UnsupportedMediaType,
-                format!(
-                    "{other} is not a scene; send model/gltf-binary, model/gltf+json, model/obj, multipart/form-data, or application/octet-stream to have the bytes sniffed"
-                ),
-            ));
-        }
+        Some(other) => return Err(NotAScene::Declared(other.to_owned())),
     }
-    InputKind::sniff(bytes).ok_or_else(|| {
-        Problem::new(
-            ProblemCode::UnsupportedMediaType,
-            "the body is neither GLB, glTF JSON nor OBJ text",
-        )
-    })
+    InputKind::sniff(bytes).ok_or(NotAScene::Unrecognized)
 }
 
 fn too_large(limit: usize) -> Problem {
@@ -148,9 +180,10 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
                     "the multipart body has no parts; send the scene as a part named file",
                 )
             })?;
-        let (_, file_name, part_type, bytes) = fields.remove(main);
+        let (field_name, file_name, part_type, bytes) = fields.remove(main);
         let declared = part_type.filter(|t| t != "application/octet-stream");
-        let kind = kind_of(declared.as_deref(), file_name.as_deref(), &bytes)?;
+        let kind = kind_of(declared.as_deref(), file_name.as_deref(), &bytes)
+            .map_err(|e| e.of_part(&field_name, file_name.as_deref()))?;
         let parts = fields
             .into_iter()
             .map(|(name, file_name, _, bytes)| (file_name.unwrap_or(name), bytes))
@@ -170,7 +203,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
             "the request body is empty; send a GLB, a .gltf or an OBJ",
         ));
     }
-    let kind = kind_of(media.as_deref(), None, &body)?;
+    let kind = kind_of(media.as_deref(), None, &body).map_err(NotAScene::of_body)?;
     Ok(Upload {
         kind,
         main: body,

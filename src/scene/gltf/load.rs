@@ -7,7 +7,7 @@
 
 use super::glb::{self, Chunk};
 use crate::scene::error::{ProblemCode, SceneError};
-use crate::scene::uri::{self, PartSet, UriError};
+use crate::scene::uri::{self, LookedIn, PartSet, UriError};
 use std::borrow::Cow;
 use tspace_json::{Document, Node};
 
@@ -30,7 +30,7 @@ impl<'a> Resources<'a> for NoResources {
     fn fetch(&self, uri: &str) -> Result<Cow<'a, [u8]>, UriError> {
         Err(UriError::MissingPart {
             uri: uri.to_owned(),
-            available: 0,
+            looked_in: LookedIn::Nothing,
         })
     }
 }
@@ -367,6 +367,9 @@ pub fn resource_error(path: &str, error: UriError) -> SceneError {
         }
         UriError::Refused { .. } => {
             SceneError::new(ProblemCode::RefusedUri, format!("{path}.uri: {error}"))
+        }
+        UriError::FileTooLarge { .. } => {
+            SceneError::new(ProblemCode::BufferTooLarge, format!("{path}.uri: {error}"))
         }
         _ => SceneError::new(ProblemCode::MalformedUri, format!("{path}.uri: {error}")),
     }
