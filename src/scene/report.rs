@@ -3,8 +3,9 @@
 //! come with the first few offending indices so that a user can find them in a viewer.
 //!
 //! Counts alone do not say what to do, so every count that is not zero also becomes a
-//! [`Finding`] with a severity and one line of meaning, from one table ([`FindingKind`]): a
-//! pipeline gates on `summary.findings` without knowing which of twenty counts matter.
+//! [`Finding`] with a severity and one line of meaning, from two tables (the diagnostics' and
+//! [`NOTICES`]): a pipeline gates on `summary.findings` without knowing which of twenty counts
+//! matter.
 //! The report is versioned (`report_version`); the fields version 2 renamed stay, marked
 //! deprecated in `docs/report.md`, until version 3.
 
