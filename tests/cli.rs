@@ -625,6 +625,23 @@ fn dash_reads_stdin_and_writes_stdout() {
     assert_eq!(code(&out), 0, "{}", stderr(&out));
     assert!(glb::parse(&out.stdout).is_ok());
     assert!(out.stderr.is_empty(), "{}", stderr(&out));
+    // The report can take standard output instead, the summary staying on stderr.
+    let out = tspace(
+        t.path(),
+        &[
+            "process",
+            "from-stdin.glb",
+            "-o",
+            "again.glb",
+            "--report",
+            "-",
+        ],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let report: Value = serde_json::from_slice(&out.stdout).expect("stdout is the report");
+    assert_eq!(report["input_format"], "glb");
+    assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
+    assert!(t.path().join("again.glb").is_file());
 }
 
 #[test]
@@ -667,6 +684,7 @@ fn dash_where_it_cannot_work_is_one_usage_line() {
         &["process", "Box/Box.glb", "Avocado/Avocado.gltf", "-o", "-"],
         &["process", "Box", "-o", "-"],
         &["analyze", "-", "Box/Box.glb"],
+        &["process", "-", "-o", "-", "--report", "-"],
     ] {
         let out = tspace_with_stdin(t.path(), args, fixture_bytes("Box/Box.glb"));
         assert_eq!(code(&out), 2, "{args:?}: {}", stderr(&out));

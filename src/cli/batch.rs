@@ -174,10 +174,23 @@ fn names_directory(inputs: &[PathBuf]) -> bool {
     inputs.iter().any(|p| !is_dash(p) && p.is_dir())
 }
 
+/// Standard output carries one thing: the scene or the report.
+fn check_one_stdout(args: &ProcessArgs) -> Result<(), String> {
+    let to_stdout = |p: &Option<PathBuf>| p.as_deref().is_some_and(is_dash);
+    if to_stdout(&args.output) && to_stdout(&args.report) {
+        return Err(
+            "-o - and --report - would both write standard output; write one of them to a file"
+                .to_owned(),
+        );
+    }
+    Ok(())
+}
+
 /// The checks of a `process` line that need no file read: its form, `-`, and `-o`.
 fn check_process_line(args: &mut ProcessArgs) -> Result<(), String> {
     take_in_out_form(args)?;
     stdio::check_dash_input(&args.inputs, args.output.is_none())?;
+    check_one_stdout(args)?;
     check_single_output(args, names_directory(&args.inputs))
 }
 
@@ -283,18 +296,25 @@ fn print_outcomes(outcomes: &[Outcome], verbose: bool) {
     }
 }
 
-/// Writes the `--report` document. Failing to is [`Exit::Write`] but undoes nothing: the
-/// outputs are written already.
+/// Writes the `--report` document, to standard output for `-`. Failing to is [`Exit::Write`]
+/// but undoes nothing: the outputs are written already.
 fn write_report(path: &Path, outcomes: &[Outcome], single: bool) -> Exit {
     let written = report_text(outcomes, single)
         .map_err(std::io::Error::other)
-        .and_then(|text| write_atomically(path, format!("{text}\n").as_bytes()));
+        .and_then(|text| {
+            let text = format!("{text}\n");
+            if is_dash(path) {
+                stdio::write_stdout(text.as_bytes())
+            } else {
+                write_atomically(path, text.as_bytes())
+            }
+        });
     match written {
         Ok(()) => Exit::Ok,
         Err(e) => {
             eprintln!(
                 "tspace: {}: cannot write the report: {} ({})",
-                path.display(),
+                output_name(path),
                 io_message(&e),
                 FailureCode::WriteFailed
             );

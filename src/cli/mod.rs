@@ -201,8 +201,8 @@ struct ProcessArgs {
     /// Write outputs into this directory instead of beside the inputs.
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
-    /// Write the JSON report here: one report for one input file, else an array of
-    /// {input, output, report} or {input, error: {code, message}}.
+    /// Write the JSON report here (- for standard output): one report for one input file, else
+    /// an array of {input, output, report} or {input, error: {code, message}}.
     #[arg(long, value_name = "FILE")]
     report: Option<PathBuf>,
     #[command(flatten)]

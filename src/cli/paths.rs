@@ -198,7 +198,7 @@ pub(crate) fn check(
         }
         output_ids.insert(id, i);
     }
-    if let Some(report) = report {
+    if let Some(report) = report.filter(|r| !is_dash(r)) {
         let id = identity(report);
         if input_ids.contains_key(&id) || output_ids.contains_key(&id) {
             return Err(format!(
