@@ -312,17 +312,17 @@ pub fn main() -> ExitCode {
 fn print_completions(shell: clap_complete::Shell) -> Exit {
     let mut script = Vec::new();
     clap_complete::generate(shell, &mut Cli::command(), "tspace", &mut script);
-    stdio::write_stdout(&script).map_or_else(
-        |e| {
+    match stdio::write_stdout(&script) {
+        Ok(()) => Exit::Ok,
+        Err(e) => {
             eprintln!(
                 "tspace: cannot write the completion script: {} ({})",
                 paths::io_message(&e),
                 outcome::FailureCode::WriteFailed
             );
             Exit::Write
-        },
-        |()| Exit::Ok,
-    )
+        }
+    }
 }
 
 #[cfg(test)]
