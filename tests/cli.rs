@@ -749,8 +749,9 @@ fn fail_on_exits_5_after_writing_everything_and_failures_win() {
     t.copy_fixture("Avocado", "Avocado");
     t.copy_fixture("spider", "spider");
     t.copy_fixture("Box", "Box");
+    t.copy_fixture("NormalTangentMirrorTest", "Mirror");
 
-    // Avocado's kept tangents disagree with MikkTSpace; it has no warnings.
+    // Avocado's kept tangents disagree with MikkTSpace.
     let out = tspace(
         t.path(),
         &["analyze", "Avocado/Avocado.gltf", "--fail-on", "audit"],
@@ -761,15 +762,21 @@ fn fail_on_exits_5_after_writing_everything_and_failures_win() {
         "tspace: --fail-on audit: 1 audit disagrees with MikkTSpace\n"
     );
     assert!(serde_json::from_slice::<Value>(&out.stdout).is_ok());
-    let out = tspace(
-        t.path(),
-        &["analyze", "Avocado/Avocado.gltf", "--fail-on", "warnings"],
-    );
-    assert_eq!(code(&out), 0, "{}", stderr(&out));
     let out = tspace(t.path(), &["analyze", "Avocado/Avocado.gltf"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
+    // This one's kept tangents agree, and its findings are only of info severity.
+    let mirror = "Mirror/NormalTangentMirrorTest.gltf";
+    let out = tspace(
+        t.path(),
+        &["analyze", mirror, "--fail-on", "audit,warnings"],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["summary"]["audited"], 1);
+    assert_eq!(report["summary"]["findings"]["info"], 1);
 
-    // The spider OBJ has two warnings; its output is still written.
+    // The spider OBJ has an error (normals dropped) and a warning: warnings counts both. Its
+    // output is still written.
     let out = tspace(
         t.path(),
         &[
@@ -784,7 +791,7 @@ fn fail_on_exits_5_after_writing_everything_and_failures_win() {
     );
     assert_eq!(code(&out), 5, "{}", stderr(&out));
     assert!(
-        stderr(&out).ends_with("tspace: --fail-on warnings: 2 warnings\n"),
+        stderr(&out).ends_with("tspace: --fail-on warnings: 1 error, 1 warning\n"),
         "{}",
         stderr(&out)
     );
@@ -801,7 +808,7 @@ fn fail_on_exits_5_after_writing_everything_and_failures_win() {
         assert_eq!(code(&out), 5, "{}", stderr(&out));
         assert!(
             stderr(&out).contains(
-                "--fail-on audit,warnings: 1 audit disagrees with MikkTSpace, 2 warnings"
+                "--fail-on audit,warnings: 1 audit disagrees with MikkTSpace, 1 error, 2 warnings"
             ),
             "{}",
             stderr(&out)
@@ -834,11 +841,12 @@ fn the_summary_counts_audits_and_warnings() {
     t.copy_fixture("spider", "spider");
     let out = tspace(t.path(), &["process", "Avocado", "spider"]);
     assert_eq!(code(&out), 0, "{}", stderr(&out));
-    // Avocado's three images are not in the fixture (three warnings), the spider has two.
+    // Avocado: its audit, and its three images, not in the fixture (four warnings); the spider:
+    // its normals dropped (an error) and its textures not supplied (a warning).
     assert_eq!(
         stderr(&out),
         "tspace: 2 files ok, 0 failed; 0 primitives generated, 0 vertices added; \
-         1 audit disagrees with MikkTSpace, 5 warnings\n"
+         1 audit disagrees with MikkTSpace, 1 error, 5 warnings\n"
     );
 }
 
@@ -889,14 +897,16 @@ fn quiet_keeps_only_failures_and_verbose_adds_each_file() {
     assert_eq!(lines.len(), 5, "{err}");
     assert_eq!(
         lines[0],
-        "tspace: spider/spider.obj: 0 primitives generated, 0 audited, 5 skipped, 0 vertices added; 2 warnings"
+        "tspace: spider/spider.obj: 0 primitives generated, 0 audited, 5 skipped, 0 vertices added; 1 error, 1 warning"
     );
     assert!(
-        lines[1].starts_with("tspace: spider/spider.obj: warning: 52 triangles"),
+        lines[1].starts_with("tspace: spider/spider.obj: error: 52 triangles")
+            && lines[1].ends_with("(invalid_normals_dropped)"),
         "{err}"
     );
     assert!(
-        lines[2].starts_with("tspace: spider/spider.obj: warning: texture files"),
+        lines[2].starts_with("tspace: spider/spider.obj: warning: texture files")
+            && lines[2].ends_with("(textures_not_supplied)"),
         "{err}"
     );
     assert!(

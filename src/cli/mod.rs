@@ -33,7 +33,7 @@ Exit codes:
   3  bad input: a file that is missing, unreadable, not a scene, malformed, unprocessable or
      over a limit
   4  I/O failure writing an output or the report
-  5  --fail-on: a finding it names (an audit that disagrees with MikkTSpace, a warning)
+  5  --fail-on: a finding it names (an audit that disagrees with MikkTSpace, a warning or error)
 With several files the worst outcome wins, in the order 1, 4, 3, 5, 0."
     };
 }
@@ -87,7 +87,7 @@ write the same output, is a usage error and nothing is written.
 are read. With -o - nothing but the scene is written to standard output.
 
 Failures are printed one a line, `tspace: <file>: <message> (<code>)`, then one summary line
-(none with -q; -v adds a line per file, with its warnings).
+(none with -q; -v adds a line per file, with its warnings and errors).
 
 ",
     exit_codes!()
@@ -165,7 +165,7 @@ impl SceneArgs {
 enum FailOn {
     /// Kept tangents that disagree with MikkTSpace (the report's summary.audits_disagreeing).
     Audit,
-    /// Any finding of warning or error severity in a report.
+    /// Any finding of warning or error severity in a report (summary.findings).
     Warnings,
 }
 
@@ -178,7 +178,7 @@ struct RunArgs {
     /// No progress bar and no summary line; failures are still printed, one line each.
     #[arg(short, long, conflicts_with = "verbose")]
     quiet: bool,
-    /// A line per file with its counts, and each of its warnings.
+    /// A line per file with its counts, and each of its findings of warning or error severity.
     #[arg(short, long)]
     verbose: bool,
 }

@@ -4,19 +4,15 @@
 use super::outcome::Outcome;
 use super::stdio::input_name;
 use super::{Exit, FailOn};
-use crate::scene::report::Report;
+use crate::scene::report::{Finding, Report, Severity};
 use std::path::Path;
 
-/// The findings of warning or error severity in one report: what `--fail-on warnings` and the
-/// summary count.
-fn warnings_of(report: &Report) -> u64 {
-    report.warnings.len() as u64
-}
-
-/// The findings `--fail-on` can name, added up over reports.
+/// The findings `--fail-on` can name, added up over reports. Errors and warnings are the
+/// report's own counts (`summary.findings`), so the CLI and the report never disagree on them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Findings {
     audits_disagreeing: u64,
+    errors: u64,
     warnings: u64,
 }
 
@@ -24,41 +20,52 @@ impl Findings {
     fn of(report: &Report) -> Findings {
         Findings {
             audits_disagreeing: report.summary.audits_disagreeing,
-            warnings: warnings_of(report),
+            errors: report.summary.findings.error,
+            warnings: report.summary.findings.warning,
         }
     }
 
     fn add(&mut self, other: Findings) {
         self.audits_disagreeing += other.audits_disagreeing;
+        self.errors += other.errors;
         self.warnings += other.warnings;
     }
 
+    /// What `--fail-on` counts: `warnings` stops on a warning or anything worse.
     fn count(&self, finding: FailOn) -> u64 {
         match finding {
             FailOn::Audit => self.audits_disagreeing,
-            FailOn::Warnings => self.warnings,
+            FailOn::Warnings => self.errors + self.warnings,
         }
     }
 
-    /// The non-zero counts, in words: `1 audit disagrees with MikkTSpace, 2 warnings`.
+    /// The non-zero counts, in words: `1 audit disagrees with MikkTSpace, 1 error, 2 warnings`.
     fn describe(&self, which: &[FailOn]) -> Vec<String> {
-        which
-            .iter()
-            .filter(|&&finding| self.count(finding) > 0)
-            .map(|&finding| describe_one(finding, self.count(finding)))
-            .collect()
+        let mut words = Vec::new();
+        for finding in which {
+            match finding {
+                FailOn::Audit => match self.audits_disagreeing {
+                    0 => {}
+                    1 => words.push("1 audit disagrees with MikkTSpace".to_owned()),
+                    n => words.push(format!("{n} audits disagree with MikkTSpace")),
+                },
+                FailOn::Warnings => {
+                    for (n, one, many) in [
+                        (self.errors, "error", "errors"),
+                        (self.warnings, "warning", "warnings"),
+                    ] {
+                        if n > 0 {
+                            words.push(plural(n, one, many));
+                        }
+                    }
+                }
+            }
+        }
+        words
     }
 }
 
 const BOTH: [FailOn; 2] = [FailOn::Audit, FailOn::Warnings];
-
-fn describe_one(finding: FailOn, n: u64) -> String {
-    match finding {
-        FailOn::Audit if n == 1 => "1 audit disagrees with MikkTSpace".to_owned(),
-        FailOn::Audit => format!("{n} audits disagree with MikkTSpace"),
-        FailOn::Warnings => plural(n, "warning", "warnings"),
-    }
-}
 
 pub(crate) fn plural(n: u64, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
@@ -143,7 +150,7 @@ fn append_findings(line: &mut String, described: &[String]) {
     }
 }
 
-/// `--verbose`: the file's counts, then one line per warning.
+/// `--verbose`: the file's counts, then one line per finding of warning or error severity.
 pub(crate) fn file_lines(path: &Path, report: &Report) -> Vec<String> {
     let name = input_name(path);
     let s = &report.summary;
@@ -155,22 +162,42 @@ pub(crate) fn file_lines(path: &Path, report: &Report) -> Vec<String> {
         plural(s.vertices_added, "vertex", "vertices"),
     );
     append_findings(&mut counts, &Findings::of(report).describe(&BOTH));
-    let warnings = report
-        .warnings
+    let findings = report
+        .findings
         .iter()
-        .map(|message| format!("tspace: {name}: warning: {message}"));
-    std::iter::once(counts).chain(warnings).collect()
+        .filter(|f| f.severity >= Severity::Warning)
+        .map(|f| format!("tspace: {name}: {}", finding_text(f)));
+    std::iter::once(counts).chain(findings).collect()
+}
+
+/// `warning: mesh 0 primitive 1: 80 triangles whose UVs have no area: ... (zero_uv_area_triangles)`.
+fn finding_text(finding: &Finding) -> String {
+    let severity = match finding.severity {
+        Severity::Error => "error",
+        Severity::Warning => "warning",
+        Severity::Info => "info",
+    };
+    let at = finding
+        .primitive
+        .map(|[mesh, primitive]| format!("mesh {mesh} primitive {primitive}: "))
+        .unwrap_or_default();
+    let count = finding.count.map(|n| format!("{n} ")).unwrap_or_default();
+    format!(
+        "{severity}: {at}{count}{} ({})",
+        finding.message, finding.code
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::report::{DiagnosticsReport, Notice, PrimitiveReport, TallyReport};
 
-    fn report(generated: u64, audits_disagreeing: u64, warnings: usize) -> Report {
+    fn report(generated: u64, audits_disagreeing: u64, warnings: u64) -> Report {
         let mut report = Report::default();
         report.summary.generated = generated;
         report.summary.audits_disagreeing = audits_disagreeing;
-        report.warnings = vec!["w".to_owned(); warnings];
+        report.summary.findings.warning = warnings;
         report
     }
 
@@ -217,15 +244,66 @@ mod tests {
     }
 
     #[test]
-    fn verbose_gives_counts_then_warnings() {
-        let lines = file_lines(Path::new("a.obj"), &report(1, 0, 2));
+    fn errors_are_named_apart_and_fail_warnings_too() {
+        let mut with_error = report(0, 0, 1);
+        with_error.summary.findings.error = 1;
+        let run = tally(&[with_error]);
+        assert!(
+            run.summary_line().ends_with("; 1 error, 1 warning"),
+            "{}",
+            run.summary_line()
+        );
         assert_eq!(
-            lines,
-            [
-                "tspace: a.obj: 1 primitive generated, 0 audited, 0 skipped, 0 vertices added; 2 warnings",
-                "tspace: a.obj: warning: w",
-                "tspace: a.obj: warning: w",
-            ]
+            run.fail_on_line(&[FailOn::Warnings]).as_deref(),
+            Some("tspace: --fail-on warnings: 1 error, 1 warning")
+        );
+        let mut error_only = report(0, 0, 0);
+        error_only.summary.findings.error = 2;
+        assert!(
+            tally(&[error_only])
+                .fail_on_line(&[FailOn::Warnings])
+                .is_some()
+        );
+    }
+
+    #[test]
+    fn verbose_gives_counts_then_warnings_and_errors() {
+        let mut report = Report::default();
+        report.summary.generated = 1;
+        report.primitives.push(PrimitiveReport {
+            mesh: 0,
+            primitive: 1,
+            diagnostics: Some(Box::new(DiagnosticsReport {
+                zero_uv_area_triangles: TallyReport {
+                    count: 3,
+                    first: vec![0],
+                },
+                mirrored_uv_triangles: TallyReport {
+                    count: 7,
+                    first: vec![0],
+                },
+                ..DiagnosticsReport::default()
+            })),
+            ..PrimitiveReport::default()
+        });
+        report.notices = vec![Notice::new("image_not_supplied", "images[0] is missing")];
+        report.finish();
+        let lines = file_lines(Path::new("a.obj"), &report);
+        assert_eq!(lines.len(), 3, "{lines:#?}");
+        assert_eq!(
+            lines[0],
+            "tspace: a.obj: 1 primitive generated, 0 audited, 0 skipped, 0 vertices added; 2 warnings"
+        );
+        assert!(
+            lines[1]
+                .starts_with("tspace: a.obj: warning: mesh 0 primitive 1: 3 triangles whose UVs")
+                && lines[1].ends_with(" (zero_uv_area_triangles)"),
+            "{}",
+            lines[1]
+        );
+        assert_eq!(
+            lines[2],
+            "tspace: a.obj: warning: images[0] is missing (image_not_supplied)"
         );
     }
 }
