@@ -941,6 +941,79 @@ fn completions_are_printed_for_each_shell() {
     assert_eq!(code(&out), 2);
 }
 
+/// Runs `tspace ARGS` on a pseudo-terminal 80 columns wide (stdin, stdout and stderr), under
+/// `script` (util-linux), returning what the terminal showed; `None`, with one line, where
+/// `script` is missing.
+fn tspace_on_a_terminal(dir: &Path, args: &str) -> Option<(i32, String)> {
+    let script_runs = Command::new("script")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !script_runs {
+        println!("cli: script (util-linux) not found, skipping a terminal test");
+        return None;
+    }
+    // `timeout`: a binary that waits on the terminal fails the test instead of hanging it.
+    let shell = format!(
+        "stty cols 80 rows 24; exec timeout 60 '{}' {args} < /dev/tty",
+        env!("CARGO_BIN_EXE_tspace")
+    );
+    let out = Command::new("script")
+        .args(["-qec", &shell, "/dev/null"])
+        .current_dir(dir)
+        .env_remove("RUST_BACKTRACE")
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    Some((
+        code(&out),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+    ))
+}
+
+#[test]
+fn the_progress_bar_fits_80_columns_and_keeps_the_file_name() {
+    let t = TempDir::new("progress");
+    t.copy_fixture(
+        "Avocado",
+        "a-rather-long-folder-name/another-long-folder/Avocado",
+    );
+    let Some((exit, terminal)) =
+        tspace_on_a_terminal(t.path(), "process a-rather-long-folder-name --out-dir out")
+    else {
+        return;
+    };
+    assert_eq!(exit, 0, "{terminal}");
+    let frames: Vec<&str> = terminal
+        .split('\r')
+        .map(|frame| frame.trim_start_matches("\x1b[2K").trim_end())
+        .filter(|frame| frame.contains(" files "))
+        .collect();
+    assert!(!frames.is_empty(), "no progress bar drawn: {terminal:?}");
+    for frame in frames {
+        assert!(frame.chars().count() < 80, "{frame:?}");
+        assert!(
+            frame.ends_with("a-rather-long…folder/Avocado/Avocado.gltf"),
+            "{frame:?}"
+        );
+    }
+    assert!(terminal.contains("tspace: 1 file ok"), "{terminal:?}");
+}
+
+#[test]
+fn dash_from_a_terminal_is_refused_rather_than_waited_on() {
+    let t = TempDir::new("stdin-tty");
+    let Some((exit, terminal)) = tspace_on_a_terminal(t.path(), "analyze -") else {
+        return;
+    };
+    assert_eq!(exit, 2, "{terminal}");
+    assert_eq!(terminal.trim_end().lines().count(), 1, "{terminal:?}");
+    assert!(
+        terminal.contains("standard input, which is a terminal"),
+        "{terminal:?}"
+    );
+}
+
 /// Answers one connection with `status`, returning the request it read.
 fn serve_once(status: &'static str) -> (u16, std::thread::JoinHandle<String>) {
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
