@@ -4,7 +4,7 @@
 use serde_json::Value;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 use tspace::scene::gltf::glb;
 #[allow(unused_imports)]
 use tspace_testkit::validator;
@@ -52,6 +52,47 @@ fn tspace(dir: &Path, args: &[&str]) -> Output {
         .env_remove("RUST_BACKTRACE")
         .output()
         .unwrap()
+}
+
+/// Runs `tspace` with `input` piped to its standard input.
+fn tspace_with_stdin(dir: &Path, args: &[&str], input: Vec<u8>) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tspace"))
+        .args(args)
+        .current_dir(dir)
+        .env_remove("RUST_BACKTRACE")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    // Written from a thread, so that a child writing its output before reading all of its input
+    // cannot deadlock the test; a child that stops reading early closes the pipe, which is fine.
+    let writer = std::thread::spawn(move || {
+        let _ = stdin.write_all(&input);
+    });
+    let output = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    output
+}
+
+fn fixture_bytes(path: &str) -> Vec<u8> {
+    std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures")
+            .join(path),
+    )
+    .unwrap()
+}
+
+/// The names in a folder, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }
 
 fn code(output: &Output) -> i32 {
@@ -527,7 +568,450 @@ fn help_documents_the_exit_codes() {
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(text.contains("Exit codes:"), "{text}");
         assert!(text.contains("4  I/O failure"), "{text}");
+        assert!(text.contains("5  --fail-on"), "{text}");
+        assert!(text.contains("1, 4, 3, 5, 0"), "{text}");
     }
+}
+
+#[test]
+fn dash_reads_stdin_and_writes_stdout() {
+    let t = TempDir::new("stdio");
+    let before = listing(t.path());
+    let out = tspace_with_stdin(
+        t.path(),
+        &["process", "-", "-o", "-", "--all"],
+        fixture_bytes("BoxTextured_embedded/BoxTextured.gltf"),
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    // stdout holds the scene and nothing else; the summary is on stderr.
+    let parsed = glb::parse(&out.stdout).expect("stdout is one GLB");
+    let gltf: Value = serde_json::from_slice(parsed.json).unwrap();
+    assert!(has_tangents(&gltf));
+    let err = stderr(&out);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("1 file ok, 0 failed; 1 primitive generated"),
+        "{err}"
+    );
+    assert_eq!(listing(t.path()), before, "nothing written beside");
+
+    // The format comes from the bytes (a .gltf with data: URIs above): an OBJ, written as .gltf.
+    let out = tspace_with_stdin(
+        t.path(),
+        &["process", "-", "-o", "-", "--format", "gltf", "--all"],
+        fixture_bytes("negative_indices/negative_indices.obj"),
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let gltf: Value = serde_json::from_slice(&out.stdout).expect("stdout is .gltf JSON");
+    assert!(has_tangents(&gltf));
+    let out = tspace_with_stdin(
+        t.path(),
+        &["analyze", "-"],
+        fixture_bytes("BoxTextured_embedded/BoxTextured.gltf"),
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["input_format"], "gltf");
+
+    // glTF-Transform's IN OUT form takes - on either side; a file is written atomically.
+    let out = tspace_with_stdin(
+        t.path(),
+        &["process", "-", "from-stdin.glb", "--all"],
+        fixture_bytes("BoxTextured_embedded/BoxTextured.gltf"),
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(has_tangents(&glb_json(&t.path().join("from-stdin.glb"))));
+    let out = tspace(t.path(), &["process", "from-stdin.glb", "-", "-q"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(glb::parse(&out.stdout).is_ok());
+    assert!(out.stderr.is_empty(), "{}", stderr(&out));
+    // The report can take standard output instead, the summary staying on stderr.
+    let out = tspace(
+        t.path(),
+        &[
+            "process",
+            "from-stdin.glb",
+            "-o",
+            "again.glb",
+            "--report",
+            "-",
+        ],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let report: Value = serde_json::from_slice(&out.stdout).expect("stdout is the report");
+    assert_eq!(report["input_format"], "glb");
+    assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
+    assert!(t.path().join("again.glb").is_file());
+}
+
+#[test]
+fn a_gltf_from_stdin_never_opens_its_uris() {
+    // Avocado.bin is right there in the working folder, and still not read.
+    let t = TempDir::new("stdin-uris");
+    let dir = t.copy_fixture("Avocado", "Avocado");
+    let out = tspace_with_stdin(
+        &dir,
+        &["analyze", "-"],
+        fixture_bytes("Avocado/Avocado.gltf"),
+    );
+    assert_eq!(code(&out), 3, "{}", stderr(&out));
+    let err = stderr(&out);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("tspace: standard input: "), "{err}");
+    assert!(err.contains("Avocado.bin"), "{err}");
+    assert!(err.contains("only data: URIs"), "{err}");
+    assert!(err.trim_end().ends_with("(missing-resource)"), "{err}");
+    assert!(out.stdout.is_empty());
+
+    let out = tspace_with_stdin(&dir, &["analyze", "-"], b"\x89PNG\r\n\x1a\n\0\0".to_vec());
+    assert_eq!(code(&out), 3, "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("(unknown-format)"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn dash_where_it_cannot_work_is_one_usage_line() {
+    let t = TempDir::new("stdio-usage");
+    t.copy_fixture("Box", "Box");
+    t.copy_fixture("Avocado", "Avocado");
+    for args in [
+        &["process", "-"][..],
+        &["process", "-", "Box/Box.glb", "-o", "x.glb"],
+        &["process", "-", "-", "-o", "-"],
+        &["process", "Box/Box.glb", "Avocado/Avocado.gltf", "-o", "-"],
+        &["process", "Box", "-o", "-"],
+        &["analyze", "-", "Box/Box.glb"],
+        &["process", "-", "-o", "-", "--report", "-"],
+    ] {
+        let out = tspace_with_stdin(t.path(), args, fixture_bytes("Box/Box.glb"));
+        assert_eq!(code(&out), 2, "{args:?}: {}", stderr(&out));
+        let err = stderr(&out);
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        assert!(out.stdout.is_empty(), "{args:?}");
+    }
+    assert_eq!(listing(t.path()), ["Avocado", "Box"]);
+}
+
+#[test]
+fn analyze_several_inputs_prints_an_array() {
+    let t = TempDir::new("analyze-many");
+    t.copy_fixture("Box", "Box");
+    t.copy_fixture("Avocado", "models/Avocado");
+    t.copy_fixture("negative_indices", "models/negative_indices");
+    let out = tspace(
+        t.path(),
+        &["analyze", "Box/Box.glb", "models", "absent.glb"],
+    );
+    assert_eq!(code(&out), 3, "{}", stderr(&out));
+    let err = stderr(&out);
+    assert_eq!(
+        err,
+        "tspace: absent.glb: cannot read it: No such file or directory (unreadable-input)\n"
+    );
+    let entries: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let entries = entries.as_array().unwrap();
+    let inputs: Vec<&str> = entries
+        .iter()
+        .map(|e| e["input"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        inputs,
+        [
+            "Box/Box.glb",
+            "models/Avocado/Avocado.gltf",
+            "models/negative_indices/negative_indices.obj",
+            "absent.glb"
+        ]
+    );
+    assert_eq!(entries[1]["report"]["summary"]["audited"], 1);
+    assert_eq!(entries[2]["report"]["input_format"], "obj");
+    assert_eq!(entries[3]["error"]["code"], "unreadable-input");
+    assert!(entries.iter().all(|e| e.get("output").is_none()));
+    // Analysis writes nothing.
+    assert_eq!(
+        listing(&t.path().join("models/Avocado")),
+        ["Avocado.bin", "Avocado.gltf"]
+    );
+
+    // One directory is an array too, even of one file.
+    let out = tspace(t.path(), &["analyze", "Box"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let entries: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(entries.as_array().unwrap().len(), 1);
+}
+
+#[test]
+fn fail_on_exits_5_after_writing_everything_and_failures_win() {
+    let t = TempDir::new("fail-on");
+    t.copy_fixture("Avocado", "Avocado");
+    t.copy_fixture("spider", "spider");
+    t.copy_fixture("Box", "Box");
+    t.copy_fixture("NormalTangentMirrorTest", "Mirror");
+
+    // Avocado's kept tangents disagree with MikkTSpace.
+    let out = tspace(
+        t.path(),
+        &["analyze", "Avocado/Avocado.gltf", "--fail-on", "audit"],
+    );
+    assert_eq!(code(&out), 5, "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out),
+        "tspace: --fail-on audit: 1 audit disagrees with MikkTSpace\n"
+    );
+    assert!(serde_json::from_slice::<Value>(&out.stdout).is_ok());
+    let out = tspace(t.path(), &["analyze", "Avocado/Avocado.gltf"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    // This one's kept tangents agree, and its findings are only of info severity.
+    let mirror = "Mirror/NormalTangentMirrorTest.gltf";
+    let out = tspace(
+        t.path(),
+        &["analyze", mirror, "--fail-on", "audit,warnings"],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["summary"]["audited"], 1);
+    assert_eq!(report["summary"]["findings"]["info"], 1);
+
+    // The spider OBJ has an error (normals dropped) and a warning: warnings counts both. Its
+    // output is still written.
+    let out = tspace(
+        t.path(),
+        &[
+            "process",
+            "spider/spider.obj",
+            "Box/Box.glb",
+            "--out-dir",
+            "out",
+            "--fail-on",
+            "warnings",
+        ],
+    );
+    assert_eq!(code(&out), 5, "{}", stderr(&out));
+    assert!(
+        stderr(&out).ends_with("tspace: --fail-on warnings: 1 error, 1 warning\n"),
+        "{}",
+        stderr(&out)
+    );
+    glb_json(&t.path().join("out/spider.glb"));
+
+    // A comma list, or the flag repeated, names both.
+    for flags in [
+        &["--fail-on", "audit,warnings"][..],
+        &["--fail-on", "warnings", "--fail-on", "audit"],
+    ] {
+        let mut args = vec!["analyze", "Avocado/Avocado.gltf", "spider/spider.obj"];
+        args.extend_from_slice(flags);
+        let out = tspace(t.path(), &args);
+        assert_eq!(code(&out), 5, "{}", stderr(&out));
+        assert!(
+            stderr(&out).contains(
+                "--fail-on audit,warnings: 1 audit disagrees with MikkTSpace, 1 error, 2 warnings"
+            ),
+            "{}",
+            stderr(&out)
+        );
+    }
+
+    // A file that fails is worse than a finding: exit 3.
+    let out = tspace(
+        t.path(),
+        &[
+            "analyze",
+            "Avocado/Avocado.gltf",
+            "absent.glb",
+            "--fail-on",
+            "audit",
+        ],
+    );
+    assert_eq!(code(&out), 3, "{}", stderr(&out));
+    let out = tspace(
+        t.path(),
+        &["analyze", "Box/Box.glb", "--fail-on", "nothing"],
+    );
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+}
+
+#[test]
+fn the_summary_counts_audits_and_warnings() {
+    let t = TempDir::new("summary");
+    t.copy_fixture("Avocado", "Avocado");
+    t.copy_fixture("spider", "spider");
+    let out = tspace(t.path(), &["process", "Avocado", "spider"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    // Avocado: its audit, and its three images, not in the fixture (four warnings); the spider:
+    // its normals dropped (an error) and its textures not supplied (a warning).
+    assert_eq!(
+        stderr(&out),
+        "tspace: 2 files ok, 0 failed; 0 primitives generated, 0 vertices added; \
+         1 audit disagrees with MikkTSpace, 1 error, 5 warnings\n"
+    );
+}
+
+#[test]
+fn quiet_keeps_only_failures_and_verbose_adds_each_file() {
+    let t = TempDir::new("quiet");
+    t.copy_fixture("Box", "Box");
+    t.copy_fixture("spider", "spider");
+    let out = tspace(
+        t.path(),
+        &["process", "Box/Box.glb", "-q", "--out-dir", "q"],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(out.stderr.is_empty(), "{}", stderr(&out));
+    assert!(t.path().join("q/Box.glb").is_file());
+
+    let out = tspace(
+        t.path(),
+        &[
+            "process",
+            "Box/Box.glb",
+            "absent.obj",
+            "--quiet",
+            "--out-dir",
+            "q",
+        ],
+    );
+    assert_eq!(code(&out), 3);
+    assert_eq!(
+        stderr(&out),
+        "tspace: absent.obj: cannot read it: No such file or directory (unreadable-input)\n"
+    );
+
+    let out = tspace(
+        t.path(),
+        &[
+            "process",
+            "spider/spider.obj",
+            "Box/Box.glb",
+            "-v",
+            "--out-dir",
+            "v",
+        ],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let err = stderr(&out);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 5, "{err}");
+    assert_eq!(
+        lines[0],
+        "tspace: spider/spider.obj: 0 primitives generated, 0 audited, 5 skipped, 0 vertices added; 1 error, 1 warning"
+    );
+    assert!(
+        lines[1].starts_with("tspace: spider/spider.obj: error: 52 triangles")
+            && lines[1].ends_with("(invalid_normals_dropped)"),
+        "{err}"
+    );
+    assert!(
+        lines[2].starts_with("tspace: spider/spider.obj: warning: texture files")
+            && lines[2].ends_with("(textures_not_supplied)"),
+        "{err}"
+    );
+    assert!(
+        lines[3].starts_with("tspace: Box/Box.glb: 0 primitives generated"),
+        "{err}"
+    );
+    assert!(
+        lines[4].starts_with("tspace: 2 files ok, 0 failed"),
+        "{err}"
+    );
+
+    let out = tspace(t.path(), &["process", "Box/Box.glb", "-q", "-v"]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+}
+
+#[test]
+fn completions_are_printed_for_each_shell() {
+    let t = TempDir::new("completions");
+    for (shell, marker) in [
+        ("bash", "complete -F _tspace"),
+        ("zsh", "#compdef tspace"),
+        ("fish", "complete -c tspace"),
+    ] {
+        let out = tspace(t.path(), &["completions", shell]);
+        assert_eq!(code(&out), 0, "{shell}: {}", stderr(&out));
+        let script = String::from_utf8(out.stdout).unwrap();
+        assert!(script.contains(marker), "{shell}: {script}");
+        assert!(script.contains("fail-on"), "{shell}");
+        assert!(out.stderr.is_empty());
+    }
+    let out = tspace(t.path(), &["completions", "cmd.exe"]);
+    assert_eq!(code(&out), 2);
+}
+
+/// Runs `tspace ARGS` on a pseudo-terminal 80 columns wide (stdin, stdout and stderr), under
+/// `script` (util-linux), returning what the terminal showed; `None`, with one line, where
+/// `script` is missing.
+fn tspace_on_a_terminal(dir: &Path, args: &str) -> Option<(i32, String)> {
+    let script_runs = Command::new("script")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !script_runs {
+        println!("cli: script (util-linux) not found, skipping a terminal test");
+        return None;
+    }
+    // `timeout`: a binary that waits on the terminal fails the test instead of hanging it.
+    let shell = format!(
+        "stty cols 80 rows 24; exec timeout 60 '{}' {args} < /dev/tty",
+        env!("CARGO_BIN_EXE_tspace")
+    );
+    let out = Command::new("script")
+        .args(["-qec", &shell, "/dev/null"])
+        .current_dir(dir)
+        .env_remove("RUST_BACKTRACE")
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    Some((
+        code(&out),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+    ))
+}
+
+#[test]
+fn the_progress_bar_fits_80_columns_and_keeps_the_file_name() {
+    let t = TempDir::new("progress");
+    t.copy_fixture(
+        "Avocado",
+        "a-rather-long-folder-name/another-long-folder/Avocado",
+    );
+    let Some((exit, terminal)) =
+        tspace_on_a_terminal(t.path(), "process a-rather-long-folder-name --out-dir out")
+    else {
+        return;
+    };
+    assert_eq!(exit, 0, "{terminal}");
+    let frames: Vec<&str> = terminal
+        .split('\r')
+        .map(|frame| frame.trim_start_matches("\x1b[2K").trim_end())
+        .filter(|frame| frame.contains(" files "))
+        .collect();
+    assert!(!frames.is_empty(), "no progress bar drawn: {terminal:?}");
+    for frame in frames {
+        assert!(frame.chars().count() < 80, "{frame:?}");
+        assert!(
+            frame.ends_with("a-rather-long…folder/Avocado/Avocado.gltf"),
+            "{frame:?}"
+        );
+    }
+    assert!(terminal.contains("tspace: 1 file ok"), "{terminal:?}");
+}
+
+#[test]
+fn dash_from_a_terminal_is_refused_rather_than_waited_on() {
+    let t = TempDir::new("stdin-tty");
+    let Some((exit, terminal)) = tspace_on_a_terminal(t.path(), "analyze -") else {
+        return;
+    };
+    assert_eq!(exit, 2, "{terminal}");
+    assert_eq!(terminal.trim_end().lines().count(), 1, "{terminal:?}");
+    assert!(
+        terminal.contains("standard input, which is a terminal"),
+        "{terminal:?}"
+    );
 }
 
 /// Answers one connection with `status`, returning the request it read.

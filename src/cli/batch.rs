@@ -3,21 +3,25 @@
 
 use super::outcome::{Failure, FailureCode, Outcome, failure_line, guarded, report_text};
 use super::paths::{self, Destination, Found, Input, io_message};
-use super::{AnalyzeArgs, Exit, ProcessArgs, usage_error};
+use super::progress::Progress;
+use super::stdio::{self, is_dash, output_name};
+use super::tally::{self, Tally};
+use super::{AnalyzeArgs, Exit, ProcessArgs, RunArgs, usage_error};
 use crate::scene::error::ProblemCode;
 use crate::scene::folder::Folder;
 use crate::scene::input::{self, InputKind};
 use crate::scene::report::Report;
 use crate::scene::{OutputFormat, Processed, SceneOptions};
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
-use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 
 /// The largest file read: a main file, or a buffer, image or MTL file it names.
 const MAX_FILE_BYTES: u64 = 1 << 30;
 
 fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Processed, Failure> {
+    if is_dash(path) {
+        return stdio::process_stdin(MAX_FILE_BYTES, options);
+    }
     let unreadable = |e: std::io::Error| {
         Failure::bad_input(
             FailureCode::UnreadableInput,
@@ -71,46 +75,47 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     result
 }
 
-fn process_one(input: &Input, output: &Path, options: &SceneOptions) -> Result<Report, Failure> {
-    let processed = read_and_process(&input.path, options)?;
-    let bytes = processed.bytes.unwrap_or_default();
-    write_atomically(output, &bytes).map_err(|e| Failure {
+/// Writes one output: to standard output for `-`, else to its file.
+fn write_output(output: &Path, bytes: &[u8]) -> Result<(), Failure> {
+    let written = if is_dash(output) {
+        stdio::write_stdout(bytes)
+    } else {
+        write_atomically(output, bytes)
+    };
+    written.map_err(|e| Failure {
         exit: Exit::Write,
         code: FailureCode::WriteFailed,
-        message: format!("cannot write {}: {}", output.display(), io_message(&e)),
-    })?;
+        message: format!("cannot write {}: {}", output_name(output), io_message(&e)),
+    })
+}
+
+/// Reads one input and, for `process`, writes its output.
+fn process_one(
+    input: &Input,
+    output: Option<&Path>,
+    options: &SceneOptions,
+) -> Result<Report, Failure> {
+    let processed = read_and_process(&input.path, options)?;
+    if let Some(output) = output {
+        write_output(output, &processed.bytes.unwrap_or_default())?;
+    }
     Ok(processed.report)
 }
 
-fn progress_bar(files: usize) -> ProgressBar {
-    if files == 0 || !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(files as u64);
-    if let Ok(style) =
-        ProgressStyle::with_template("{bar:30} {pos}/{len} files  {elapsed}  {wide_msg}")
-    {
-        bar.set_style(style);
-    }
-    bar
-}
-
-/// One input's part of a run: a file to process into an output, or a failure found already.
+/// One input's part of a run: a file to read (and, for `process`, the output to write), or a
+/// failure found already.
 enum Plan<'a> {
-    Run(&'a Input, PathBuf),
+    Run(&'a Input, Option<PathBuf>),
     Fail(&'a Path, &'a str),
 }
 
-fn plural(n: u64, one: &str, many: &str) -> String {
-    format!("{n} {}", if n == 1 { one } else { many })
-}
-
 /// `tspace process IN OUT`, the form glTF-Transform's users type: two paths, neither `-o` nor
-/// `--out-dir`, the first a file and the second a `.glb` or `.gltf` name. When the second does not
-/// exist it can only be meant as the output, and becomes `-o`. When it does exist the line is
-/// ambiguous (two inputs, or the output of an earlier run): refused, naming the two ways to say
-/// it, rather than guessed; guessing "input" would leave a stale output behind and report
-/// success, guessing "output" could overwrite an input.
+/// `--out-dir`, the first a file (or `-`) and the second a `.glb` or `.gltf` name (or `-`). When
+/// the second does not exist it can only be meant as the output, and becomes `-o`; so does `-`,
+/// since standard input cannot be a second input. When the second exists the line is ambiguous
+/// (two inputs, or the output of an earlier run): refused, naming the two ways to say it, rather
+/// than guessed; guessing "input" would leave a stale output behind and report success,
+/// guessing "output" could overwrite an input.
 fn take_in_out_form(args: &mut ProcessArgs) -> Result<(), String> {
     let [first, second] = args.inputs.as_slice() else {
         return Ok(());
@@ -119,10 +124,15 @@ fn take_in_out_form(args: &mut ProcessArgs) -> Result<(), String> {
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("glb") || e.eq_ignore_ascii_case("gltf"));
-    if args.output.is_some() || args.out_dir.is_some() || !first.is_file() || !scene_name {
+    let first_is_input = is_dash(first) || first.is_file();
+    if args.output.is_some()
+        || args.out_dir.is_some()
+        || !first_is_input
+        || !(scene_name || is_dash(second))
+    {
         return Ok(());
     }
-    if second.exists() {
+    if second.exists() && !is_dash(second) {
         return Err(format!(
             "{} exists, so it is not clear whether it is a second input or the output; to write the output there, say -o {}; to process both files, add --out-dir DIR",
             second.display(),
@@ -134,23 +144,54 @@ fn take_in_out_form(args: &mut ProcessArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// `-o` names one output file, so it takes exactly one input, and that a file.
+/// `-o` names one output file (or standard output), so it takes exactly one input, and that a
+/// file.
 fn check_single_output(args: &ProcessArgs, named_directory: bool) -> Result<(), String> {
-    if args.output.is_none() {
+    let Some(output) = &args.output else {
         return Ok(());
-    }
+    };
+    let flag = if is_dash(output) {
+        "-o - (standard output)"
+    } else {
+        "-o/--output"
+    };
     if args.inputs.len() != 1 {
         return Err(format!(
-            "-o/--output takes exactly one input, and {} were given; use --out-dir DIR for several",
+            "{flag} takes exactly one input, and {} were given; use --out-dir DIR for several",
             args.inputs.len()
         ));
     }
     if named_directory {
+        return Err(format!(
+            "{flag} takes one input file, not a directory; use --out-dir DIR"
+        ));
+    }
+    Ok(())
+}
+
+/// Whether an input names a directory (whose files then get an array report).
+fn names_directory(inputs: &[PathBuf]) -> bool {
+    inputs.iter().any(|p| !is_dash(p) && p.is_dir())
+}
+
+/// Standard output carries one thing: the scene or the report.
+fn check_one_stdout(args: &ProcessArgs) -> Result<(), String> {
+    let to_stdout = |p: &Option<PathBuf>| p.as_deref().is_some_and(is_dash);
+    if to_stdout(&args.output) && to_stdout(&args.report) {
         return Err(
-            "-o/--output takes one input file, not a directory; use --out-dir DIR".to_owned(),
+            "-o - and --report - would both write standard output; write one of them to a file"
+                .to_owned(),
         );
     }
     Ok(())
+}
+
+/// The checks of a `process` line that need no file read: its form, `-`, and `-o`.
+fn check_process_line(args: &mut ProcessArgs) -> Result<(), String> {
+    take_in_out_form(args)?;
+    stdio::check_dash_input(&args.inputs, args.output.is_none())?;
+    check_one_stdout(args)?;
+    check_single_output(args, names_directory(&args.inputs))
 }
 
 /// `--format` when given, else what `-o`'s extension says, else GLB.
@@ -176,15 +217,19 @@ fn destination(args: &ProcessArgs) -> Destination {
     }
 }
 
+/// Each input's part of the run; `destination` is where outputs go, `None` for `analyze`.
 fn plan_runs<'a>(
     found: &'a [Found],
-    destination: &Destination,
+    destination: Option<&Destination>,
     format: OutputFormat,
 ) -> Vec<Plan<'a>> {
     found
         .iter()
         .map(|f| match f {
-            Found::File(input) => Plan::Run(input, paths::output_path(input, destination, format)),
+            Found::File(input) => Plan::Run(
+                input,
+                destination.map(|d| paths::output_path(input, d, format)),
+            ),
             Found::Unreadable { path, message } => Plan::Fail(path, message),
         })
         .collect()
@@ -196,22 +241,22 @@ fn check_outputs(plan: &[Plan], report: Option<&Path>) -> Result<(), String> {
     let (files, planned): (Vec<&Input>, Vec<PathBuf>) = plan
         .iter()
         .filter_map(|p| match p {
-            Plan::Run(input, output) => Some((*input, output.clone())),
-            Plan::Fail(..) => None,
+            Plan::Run(input, Some(output)) => Some((*input, output.clone())),
+            Plan::Run(_, None) | Plan::Fail(..) => None,
         })
         .unzip();
     paths::check(&files, &planned, report)
 }
 
-fn run_one(plan: &Plan, options: &SceneOptions, bar: &ProgressBar) -> Outcome {
+fn run_one(plan: &Plan, options: &SceneOptions, progress: &Progress) -> Outcome {
     match plan {
         Plan::Run(input, output) => {
-            bar.set_message(input.path.display().to_string());
-            let result = guarded(|| process_one(input, output, options));
-            bar.inc(1);
+            progress.start(&input.path);
+            let result = guarded(|| process_one(input, output.as_deref(), options));
+            progress.done();
             Outcome {
                 input: input.path.clone(),
-                output: Some(output.clone()),
+                output: output.clone(),
                 result,
             }
         }
@@ -224,61 +269,52 @@ fn run_one(plan: &Plan, options: &SceneOptions, bar: &ProgressBar) -> Outcome {
 }
 
 /// Runs the files in parallel; outcomes stay in input order.
-fn run_all(plan: &[Plan], options: &SceneOptions) -> Vec<Outcome> {
+fn run_all(plan: &[Plan], options: &SceneOptions, run: &RunArgs) -> Vec<Outcome> {
     let files = plan.iter().filter(|p| matches!(p, Plan::Run(..))).count();
-    let bar = progress_bar(files);
-    let outcomes = plan.par_iter().map(|p| run_one(p, options, &bar)).collect();
-    bar.finish_and_clear();
+    let progress = Progress::new(files, !run.quiet);
+    let outcomes = plan
+        .par_iter()
+        .map(|p| run_one(p, options, &progress))
+        .collect();
+    progress.finish();
     outcomes
 }
 
-/// How a run went: the worst exit code and the counts of the closing line.
-struct Summary {
-    exit: Exit,
-    ok: u64,
-    failed: u64,
-    generated: u64,
-    vertices_added: u64,
-}
-
-/// Prints one line per failure, after the parallel run so that lines come in input order.
-fn print_failures(outcomes: &[Outcome]) -> Summary {
-    let mut summary = Summary {
-        exit: Exit::Ok,
-        ok: 0,
-        failed: 0,
-        generated: 0,
-        vertices_added: 0,
-    };
+/// One line per failure and, with `--verbose`, the lines of each file that succeeded; after the
+/// parallel run, so that lines come in input order.
+fn print_outcomes(outcomes: &[Outcome], verbose: bool) {
     for outcome in outcomes {
         match &outcome.result {
-            Ok(report) => {
-                summary.ok += 1;
-                summary.generated += report.summary.generated;
-                summary.vertices_added += report.summary.vertices_added;
+            Ok(report) if verbose => {
+                for line in tally::file_lines(&outcome.input, report) {
+                    eprintln!("{line}");
+                }
             }
-            Err(failure) => {
-                summary.failed += 1;
-                summary.exit = summary.exit.worst(failure.exit);
-                eprintln!("{}", failure_line(&outcome.input, failure));
-            }
+            Ok(_) => {}
+            Err(failure) => eprintln!("{}", failure_line(&outcome.input, failure)),
         }
     }
-    summary
 }
 
-/// Writes the `--report` document. Failing to is [`Exit::Write`] but undoes nothing: the
-/// outputs are written already.
+/// Writes the `--report` document, to standard output for `-`. Failing to is [`Exit::Write`]
+/// but undoes nothing: the outputs are written already.
 fn write_report(path: &Path, outcomes: &[Outcome], single: bool) -> Exit {
     let written = report_text(outcomes, single)
         .map_err(std::io::Error::other)
-        .and_then(|text| write_atomically(path, format!("{text}\n").as_bytes()));
+        .and_then(|text| {
+            let text = format!("{text}\n");
+            if is_dash(path) {
+                stdio::write_stdout(text.as_bytes())
+            } else {
+                write_atomically(path, text.as_bytes())
+            }
+        });
     match written {
         Ok(()) => Exit::Ok,
         Err(e) => {
             eprintln!(
                 "tspace: {}: cannot write the report: {} ({})",
-                path.display(),
+                output_name(path),
                 io_message(&e),
                 FailureCode::WriteFailed
             );
@@ -287,64 +323,86 @@ fn write_report(path: &Path, outcomes: &[Outcome], single: bool) -> Exit {
     }
 }
 
-fn print_summary(summary: &Summary) {
-    eprintln!(
-        "tspace: {} ok, {} failed; {} generated, {} added",
-        plural(summary.ok, "file", "files"),
-        summary.failed,
-        plural(summary.generated, "primitive", "primitives"),
-        plural(summary.vertices_added, "vertex", "vertices"),
-    );
+/// Exit 5 when `--fail-on` names a finding the run had, with the line that says so; failures
+/// still win (see [`Exit::worst`]).
+fn apply_fail_on(tally: &Tally, run: &RunArgs) -> Exit {
+    match tally.fail_on_line(&run.fail_on) {
+        Some(line) => {
+            eprintln!("{line}");
+            Exit::Findings
+        }
+        None => Exit::Ok,
+    }
 }
 
 pub(crate) fn process(mut args: ProcessArgs) -> Exit {
-    if let Err(message) = take_in_out_form(&mut args) {
-        return usage_error("process", message);
-    }
-    let named_directory = args.inputs.iter().any(|p| p.is_dir());
-    if let Err(message) = check_single_output(&args, named_directory) {
+    if let Err(message) = check_process_line(&mut args) {
         return usage_error("process", message);
     }
     let format = output_format(&args);
     let found = paths::collect(&args.inputs, args.out_dir.as_deref());
-    let plan = plan_runs(&found, &destination(&args), format);
+    let plan = plan_runs(&found, Some(&destination(&args)), format);
     if let Err(message) = check_outputs(&plan, args.report.as_deref()) {
         return usage_error("process", message);
     }
 
-    let outcomes = run_all(&plan, &args.scene.scene_options(format, true));
-    let mut summary = print_failures(&outcomes);
+    let outcomes = run_all(&plan, &args.scene.scene_options(format, true), &args.run);
+    print_outcomes(&outcomes, args.run.verbose);
+    let tally = Tally::of(&outcomes);
+    let mut exit = tally.exit;
     if let Some(path) = &args.report {
         // One input file gets its report alone; several, or a folder, get an array of them.
-        let single = args.inputs.len() == 1 && !named_directory;
-        summary.exit = summary.exit.worst(write_report(path, &outcomes, single));
+        let single = args.inputs.len() == 1 && !names_directory(&args.inputs);
+        exit = exit.worst(write_report(path, &outcomes, single));
     }
-    print_summary(&summary);
-    summary.exit
+    if !args.run.quiet {
+        eprintln!("{}", tally.summary_line());
+    }
+    exit.worst(apply_fail_on(&tally, &args.run))
+}
+
+/// `analyze`'s stdout: one named file's report alone, as before several inputs were taken (so
+/// scripts reading it keep working), nothing when that file failed (its line is on stderr);
+/// else the array `process --report` writes.
+fn analysis_text(outcomes: &[Outcome], single: bool) -> Option<serde_json::Result<String>> {
+    match outcomes {
+        [one] if single => one.result.as_ref().ok().map(|r| Ok(r.to_json_pretty())),
+        _ => Some(report_text(outcomes, false)),
+    }
+}
+
+fn print_analysis(text: serde_json::Result<String>) -> Exit {
+    let written = text
+        .map_err(std::io::Error::other)
+        .and_then(|text| stdio::write_stdout(format!("{text}\n").as_bytes()));
+    match written {
+        Ok(()) => Exit::Ok,
+        Err(e) => {
+            eprintln!(
+                "tspace: cannot write the report: {} ({})",
+                io_message(&e),
+                FailureCode::WriteFailed
+            );
+            Exit::Write
+        }
+    }
 }
 
 pub(crate) fn analyze(args: AnalyzeArgs) -> Exit {
-    let options = args.scene.scene_options(OutputFormat::Glb, false);
-    match guarded(|| read_and_process(&args.input, &options)) {
-        Ok(processed) => {
-            let mut stdout = std::io::stdout().lock();
-            match writeln!(stdout, "{}", processed.report.to_json_pretty())
-                .and_then(|()| stdout.flush())
-            {
-                Ok(()) => Exit::Ok,
-                Err(e) => {
-                    eprintln!(
-                        "tspace: cannot write the report: {} ({})",
-                        io_message(&e),
-                        FailureCode::WriteFailed
-                    );
-                    Exit::Write
-                }
-            }
-        }
-        Err(failure) => {
-            eprintln!("{}", failure_line(&args.input, &failure));
-            failure.exit
-        }
+    if let Err(message) = stdio::check_dash_input(&args.inputs, false) {
+        return usage_error("analyze", message);
     }
+    let found = paths::collect(&args.inputs, None);
+    let plan = plan_runs(&found, None, OutputFormat::Glb);
+    let options = args.scene.scene_options(OutputFormat::Glb, false);
+
+    let outcomes = run_all(&plan, &options, &args.run);
+    print_outcomes(&outcomes, args.run.verbose);
+    let tally = Tally::of(&outcomes);
+    let single = args.inputs.len() == 1 && !names_directory(&args.inputs);
+    let mut exit = tally.exit;
+    if let Some(text) = analysis_text(&outcomes, single) {
+        exit = exit.worst(print_analysis(text));
+    }
+    exit.worst(apply_fail_on(&tally, &args.run))
 }

@@ -1,4 +1,5 @@
-//! The command line: `tspace serve`, `tspace process`, `tspace analyze`, `tspace healthcheck`.
+//! The command line: `tspace serve`, `tspace process`, `tspace analyze`, `tspace healthcheck`,
+//! `tspace completions`.
 //!
 //! Thin on purpose: argument parsing, file I/O and exit codes. Scenes are read, decided and
 //! written by [`crate::scene::input::process`], the same entry point the HTTP server calls.
@@ -7,13 +8,16 @@ mod batch;
 mod health;
 mod outcome;
 mod paths;
+mod progress;
+mod stdio;
+mod tally;
 
 use crate::config::ServeArgs;
 use crate::scene::options::Choices;
 use crate::scene::options::Compression;
 use crate::scene::{OutputFormat, SceneOptions, TangentType};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-use clap::{Args, CommandFactory, Parser, Subcommand};
+use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tspace_tangent::Method;
@@ -29,7 +33,8 @@ Exit codes:
   3  bad input: a file that is missing, unreadable, not a scene, malformed, unprocessable or
      over a limit
   4  I/O failure writing an output or the report
-With several files the worst outcome wins, in the order 1, 4, 3, 0."
+  5  --fail-on: a finding it names (an audit that disagrees with MikkTSpace, a warning or error)
+With several files the worst outcome wins, in the order 1, 4, 3, 5, 0."
     };
 }
 
@@ -54,18 +59,21 @@ enum Command {
     /// Add tangents to scene files and write them as GLB (or .gltf).
     #[command(after_long_help = PROCESS_HELP)]
     Process(ProcessArgs),
-    /// Print the JSON report for one scene file without writing anything.
-    #[command(after_long_help = EXIT_CODES)]
+    /// Print the JSON report of scene files without writing anything.
+    #[command(after_long_help = ANALYZE_HELP)]
     Analyze(AnalyzeArgs),
     /// GET /healthz on a running service; exit 0 when it answers 2xx, else 1 (for containers).
     Healthcheck(health::HealthArgs),
+    /// Print a shell completion script on stdout.
+    #[command(after_long_help = COMPLETIONS_HELP)]
+    Completions(CompletionsArgs),
 }
 
 const PROCESS_HELP: &str = concat!(
     "\
 Outputs:
   without -o or --out-dir   beside each input, as <stem>.tspace.glb (or .tspace.gltf)
-  -o FILE                   exactly one input file, written to FILE
+  -o FILE                   exactly one input file, written to FILE (-o - : standard output)
   --out-dir DIR             DIR/<stem>.glb; files found in a directory input keep their
                             subfolder under DIR
 Directories are searched recursively for .glb, .gltf and .obj files, in name order; hidden
@@ -74,11 +82,32 @@ are left out. Buffers, images and MTL files are read from the folder of the file
 them, never from outside it. An output that would replace an input, or two inputs that would
 write the same output, is a usage error and nothing is written.
 
-Failures are printed one a line, `tspace: <file>: <message> (<code>)`, then one summary line.
+`-` as the input reads one scene from standard input, its format told from its bytes; it needs
+-o (a file, or - for standard output). A .gltf read this way has no folder: only its data: URIs
+are read. With -o - nothing but the scene is written to standard output.
+
+Failures are printed one a line, `tspace: <file>: <message> (<code>)`, then one summary line
+(none with -q; -v adds a line per file, with its warnings and errors).
 
 ",
     exit_codes!()
 );
+
+const ANALYZE_HELP: &str = concat!(
+    "\
+One input file (or - for standard input) prints its report. Several files, or a directory
+(searched as `process` searches one), print a JSON array of {input, report} and
+{input, error: {code, message}}, the --report document of `process`.
+
+",
+    exit_codes!()
+);
+
+const COMPLETIONS_HELP: &str = "\
+Install (or re-run after upgrading tspace):
+  bash  tspace completions bash > ~/.local/share/bash-completion/completions/tspace
+  zsh   tspace completions zsh > ~/.zfunc/_tspace   (with fpath+=(~/.zfunc) before compinit)
+  fish  tspace completions fish > ~/.config/fish/completions/tspace.fish";
 
 /// The value parser of an option whose values the scene layer names ([`Choices`]): `--help`
 /// lists its names with their help, a name outside them gets clap's usual "invalid value"
@@ -131,13 +160,37 @@ impl SceneArgs {
     }
 }
 
+/// A finding that `--fail-on` turns into exit 5.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum FailOn {
+    /// Kept tangents that disagree with MikkTSpace (the report's summary.audits_disagreeing).
+    Audit,
+    /// Any finding of warning or error severity in a report (summary.findings).
+    Warnings,
+}
+
+/// How a run reports itself and what fails it; shared by `process` and `analyze`.
+#[derive(Clone, Debug, Args)]
+struct RunArgs {
+    /// Exit 5 when any file has this finding (a comma list, or repeat the flag).
+    #[arg(long, value_name = "FINDING", value_enum, value_delimiter = ',')]
+    fail_on: Vec<FailOn>,
+    /// No progress bar and no summary line; failures are still printed, one line each.
+    #[arg(short, long, conflicts_with = "verbose")]
+    quiet: bool,
+    /// A line per file with its counts, and each of its findings of warning or error severity.
+    #[arg(short, long)]
+    verbose: bool,
+}
+
 #[derive(Debug, Args)]
 struct ProcessArgs {
-    /// Scene files (.glb, .gltf, .obj) or directories to search for them. `tspace process IN
-    /// OUT` (two paths, the second a .glb or .gltf name that does not exist yet) writes OUT.
+    /// Scene files (.glb, .gltf, .obj) or directories to search for them; - reads standard
+    /// input. `tspace process IN OUT` (two paths, the second a .glb or .gltf name that does not
+    /// exist yet, or -) writes OUT.
     #[arg(value_name = "IN", required = true)]
     inputs: Vec<PathBuf>,
-    /// The output file (only with exactly one input file).
+    /// The output file (only with exactly one input file); - writes standard output.
     #[arg(
         short = 'o',
         long = "output",
@@ -148,8 +201,8 @@ struct ProcessArgs {
     /// Write outputs into this directory instead of beside the inputs.
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
-    /// Write the JSON report here: one report for one input file, else an array of
-    /// {input, output, report} or {input, error: {code, message}}.
+    /// Write the JSON report here (- for standard output): one report for one input file, else
+    /// an array of {input, output, report} or {input, error: {code, message}}.
     #[arg(long, value_name = "FILE")]
     report: Option<PathBuf>,
     #[command(flatten)]
@@ -157,21 +210,36 @@ struct ProcessArgs {
     /// Output format [default: glb, or gltf when -o names a .gltf file].
     #[arg(long, value_parser = choice::<OutputFormat>())]
     format: Option<OutputFormat>,
+    #[command(flatten)]
+    run: RunArgs,
 }
 
 #[derive(Debug, Args)]
 struct AnalyzeArgs {
-    /// One scene file (.glb, .gltf, .obj).
-    #[arg(value_name = "IN")]
-    input: PathBuf,
+    /// Scene files (.glb, .gltf, .obj) or directories to search for them; - reads standard
+    /// input.
+    #[arg(value_name = "IN", required = true)]
+    inputs: Vec<PathBuf>,
     #[command(flatten)]
     scene: SceneArgs,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(Debug, Args)]
+struct CompletionsArgs {
+    /// The shell to complete for.
+    #[arg(value_enum)]
+    shell: clap_complete::Shell,
 }
 
 /// How a command ended, ranked so that the worst of several can be kept.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) enum Exit {
+    #[default]
     Ok,
+    /// `--fail-on` found what it names; every file was still read and written.
+    Findings,
     BadInput,
     Write,
     Usage,
@@ -186,16 +254,18 @@ impl Exit {
             Exit::Usage => 2,
             Exit::BadInput => 3,
             Exit::Write => 4,
+            Exit::Findings => 5,
         }
     }
 
     fn rank(self) -> u8 {
         match self {
             Exit::Ok => 0,
-            Exit::BadInput => 1,
-            Exit::Write => 2,
-            Exit::Usage => 3,
-            Exit::Internal => 4,
+            Exit::Findings => 1,
+            Exit::BadInput => 2,
+            Exit::Write => 3,
+            Exit::Usage => 4,
+            Exit::Internal => 5,
         }
     }
 
@@ -215,15 +285,9 @@ impl From<Exit> for ExitCode {
     }
 }
 
-/// A usage error found after parsing, printed the way clap prints its own (exit 2).
+/// A usage error found after parsing: one line on stderr naming the command's help, exit 2.
 fn usage_error(subcommand: &str, message: impl std::fmt::Display) -> Exit {
-    let mut command = Cli::command();
-    command.build();
-    let error = match command.find_subcommand_mut(subcommand) {
-        Some(sub) => sub.error(clap::error::ErrorKind::ArgumentConflict, message),
-        None => command.error(clap::error::ErrorKind::ArgumentConflict, message),
-    };
-    let _ = error.print();
+    eprintln!("tspace {subcommand}: {message} (see tspace {subcommand} --help)");
     Exit::Usage
 }
 
@@ -240,6 +304,24 @@ pub fn main() -> ExitCode {
         Command::Process(args) => outcome::guarded_command(|| batch::process(args)).into(),
         Command::Analyze(args) => outcome::guarded_command(|| batch::analyze(args)).into(),
         Command::Healthcheck(args) => health::run(&args).into(),
+        Command::Completions(args) => print_completions(args.shell).into(),
+    }
+}
+
+/// Writes the completion script for `shell` to stdout.
+fn print_completions(shell: clap_complete::Shell) -> Exit {
+    let mut script = Vec::new();
+    clap_complete::generate(shell, &mut Cli::command(), "tspace", &mut script);
+    match stdio::write_stdout(&script) {
+        Ok(()) => Exit::Ok,
+        Err(e) => {
+            eprintln!(
+                "tspace: cannot write the completion script: {} ({})",
+                paths::io_message(&e),
+                outcome::FailureCode::WriteFailed
+            );
+            Exit::Write
+        }
     }
 }
 
@@ -258,5 +340,8 @@ mod tests {
         assert_eq!(Exit::Write.worst(Exit::BadInput), Exit::Write);
         assert_eq!(Exit::Write.worst(Exit::Internal), Exit::Internal);
         assert_eq!(Exit::Ok.worst(Exit::Ok), Exit::Ok);
+        assert_eq!(Exit::Ok.worst(Exit::Findings), Exit::Findings);
+        assert_eq!(Exit::Findings.worst(Exit::BadInput), Exit::BadInput);
+        assert_eq!(Exit::Findings.worst(Exit::Ok), Exit::Findings);
     }
 }

@@ -117,7 +117,7 @@ pub(crate) fn guarded_command(f: impl FnOnce() -> Exit) -> Exit {
 pub(crate) fn failure_line(path: &Path, failure: &Failure) -> String {
     format!(
         "tspace: {}: {} ({})",
-        path.display(),
+        super::stdio::input_name(path),
         failure.message,
         failure.code
     )

@@ -1,5 +1,6 @@
 //! Which files a `process` run reads, and where each output goes.
 
+use super::stdio::is_dash;
 use crate::scene::OutputFormat;
 use std::collections::{HashMap, HashSet};
 use std::ffi::OsString;
@@ -26,13 +27,21 @@ pub(crate) enum Found {
     },
 }
 
-/// Expands the inputs: files as they are, directories searched recursively (see `collect_dir`),
-/// leaving out the folder `skip` (the output folder, whose files are earlier outputs). A file
-/// named twice (or named and also found under a directory) is read once.
+/// Expands the inputs: files as they are, `-` (standard input) as it is, directories searched
+/// recursively (see `collect_dir`), leaving out the folder `skip` (the output folder, whose
+/// files are earlier outputs). A file named twice (or named and also found under a directory)
+/// is read once.
 pub(crate) fn collect(inputs: &[PathBuf], skip: Option<&Path>) -> Vec<Found> {
     let skip = skip.and_then(|p| p.canonicalize().ok());
     let mut found = Vec::new();
     for path in inputs {
+        if is_dash(path) {
+            found.push(Found::File(Input {
+                path: path.clone(),
+                relative: None,
+            }));
+            continue;
+        }
         match std::fs::metadata(path) {
             Err(e) => found.push(Found::Unreadable {
                 path: path.clone(),
@@ -155,7 +164,7 @@ pub(crate) fn output_path(
 }
 
 /// Refuses a plan that would replace an input (or write the report over one), or write two
-/// outputs to one path.
+/// outputs to one path. Standard input and output (`-`) are no file and clash with none.
 pub(crate) fn check(
     inputs: &[&Input],
     outputs: &[PathBuf],
@@ -163,10 +172,14 @@ pub(crate) fn check(
 ) -> Result<(), String> {
     let input_ids: HashMap<PathBuf, &Path> = inputs
         .iter()
+        .filter(|i| !is_dash(&i.path))
         .map(|i| (identity(&i.path), i.path.as_path()))
         .collect();
     let mut output_ids: HashMap<PathBuf, usize> = HashMap::new();
     for (i, output) in outputs.iter().enumerate() {
+        if is_dash(output) {
+            continue;
+        }
         let id = identity(output);
         if let Some(input) = input_ids.get(&id) {
             return Err(format!(
@@ -185,7 +198,7 @@ pub(crate) fn check(
         }
         output_ids.insert(id, i);
     }
-    if let Some(report) = report {
+    if let Some(report) = report.filter(|r| !is_dash(r)) {
         let id = identity(report);
         if input_ids.contains_key(&id) || output_ids.contains_key(&id) {
             return Err(format!(
