@@ -558,8 +558,13 @@ async fn health_readiness_and_documentation() {
         .json()
         .await
         .unwrap();
-    assert!(api["paths"]["/v1/tangents"]["post"].is_object());
-    assert!(api["paths"]["/v1/analyze"]["post"].is_object());
+    for route in ["/v1/tangents", "/v1/analyze"] {
+        let body = &api["paths"][route]["post"]["requestBody"]["content"];
+        for media in ["model/gltf-binary", "model/gltf+json", "model/obj"] {
+            assert_eq!(body[media]["schema"]["format"], "binary", "{route} {media}");
+        }
+        assert!(body["multipart/form-data"].is_object(), "{route}");
+    }
     let docs = http.get(format!("{base}/docs/")).send().await.unwrap();
     assert_eq!(docs.status(), 200);
     assert!(docs.text().await.unwrap().contains("swagger"));

@@ -7,8 +7,9 @@
 //! type's accepted names with a line of help, so that the command line can show them in
 //! `--help` without a mirror enum of its own.
 //!
-//! Adding an option: a field here, its parser and its entry in the setter table behind
-//! [`SceneOptions::set`]; then the flag in `src/cli/mod.rs`.
+//! Adding an option: a field here, its parser and its row in [`QUERY_OPTIONS`] (the table behind
+//! [`SceneOptions::set`] and the OpenAPI document's query parameters); then the flag in
+//! `src/cli/mod.rs`.
 
 use super::report::Report;
 use std::fmt;
@@ -255,52 +256,139 @@ impl std::error::Error for OptionError {}
 /// Sets one option from its text, or says what the option accepts.
 type Setter = fn(&mut SceneOptions, &str) -> Result<(), String>;
 
-/// Every option [`SceneOptions::set`] takes, by the name the query string gives it, with its
-/// parser: the one list that both the setter and the "unknown option" message read.
-const SETTERS: [(&str, Setter); 6] = [
-    ("method", |o, v| {
-        o.method = v
-            .parse()
-            .map_err(|e: tspace_tangent::UnknownMethod| e.to_string())?;
-        Ok(())
-    }),
-    ("overwrite", |o, v| {
-        o.overwrite = parse_switch(v).map_err(|e| e.to_string())?;
-        Ok(())
-    }),
-    ("all", |o, v| {
-        o.all = parse_switch(v).map_err(|e| e.to_string())?;
-        Ok(())
-    }),
-    ("format", |o, v| {
-        o.format = v.parse().map_err(|e: Expected| e.to_string())?;
-        Ok(())
-    }),
-    ("tangents", |o, v| {
-        o.tangents = v.parse().map_err(|e: Expected| e.to_string())?;
-        Ok(())
-    }),
-    ("compress", |o, v| {
-        o.compress = v.parse().map_err(|e: Expected| e.to_string())?;
-        Ok(())
-    }),
+/// What a query option takes, for documents that list the options (the OpenAPI document).
+#[derive(Clone, Copy)]
+pub enum OptionValues {
+    /// A boolean, read by [`parse_switch`].
+    Switch,
+    /// One of a fixed list of names: the type's name (`Method`) and its [`Choices`], the list
+    /// its [`FromStr`] reads.
+    OneOf {
+        type_name: &'static str,
+        choices: fn() -> Vec<Choice>,
+    },
+}
+
+/// One option of the query string: its name, what it does and takes, and how it is read and
+/// set. [`SceneOptions::set`], the "unknown option" message and the OpenAPI document all read
+/// [`QUERY_OPTIONS`], so an option cannot be taken without being listed.
+pub struct QueryOption {
+    /// The name the query string gives it.
+    pub key: &'static str,
+    /// What it does, in one line.
+    pub help: &'static str,
+    pub values: OptionValues,
+    /// Shapes only the written scene: accepted, and without effect, where nothing is written.
+    pub output_only: bool,
+    /// Its value in a [`SceneOptions`], as the query string spells it; on the defaults, its
+    /// default.
+    pub value_in: fn(&SceneOptions) -> String,
+    set: Setter,
+}
+
+fn switch_name(on: bool) -> String {
+    if on { "true" } else { "false" }.to_owned()
+}
+
+/// Every option [`SceneOptions::set`] takes, in the order messages and documents list them.
+pub const QUERY_OPTIONS: [QueryOption; 6] = [
+    QueryOption {
+        key: "method",
+        help: "How tangents are computed",
+        values: OptionValues::OneOf {
+            type_name: "Method",
+            choices: <Method as Choices>::choices,
+        },
+        output_only: false,
+        value_in: |o| o.method.name().to_owned(),
+        set: |o, v| {
+            o.method = v
+                .parse()
+                .map_err(|e: tspace_tangent::UnknownMethod| e.to_string())?;
+            Ok(())
+        },
+    },
+    QueryOption {
+        key: "overwrite",
+        help: "Recompute tangents a primitive already has, instead of auditing them",
+        values: OptionValues::Switch,
+        output_only: false,
+        value_in: |o| switch_name(o.overwrite),
+        set: |o, v| {
+            o.overwrite = parse_switch(v).map_err(|e| e.to_string())?;
+            Ok(())
+        },
+    },
+    QueryOption {
+        key: "all",
+        help: "Give tangents to every triangle primitive, whatever its material",
+        values: OptionValues::Switch,
+        output_only: false,
+        value_in: |o| switch_name(o.all),
+        set: |o, v| {
+            o.all = parse_switch(v).map_err(|e| e.to_string())?;
+            Ok(())
+        },
+    },
+    QueryOption {
+        key: "format",
+        help: "The container of the written scene",
+        values: OptionValues::OneOf {
+            type_name: "OutputFormat",
+            choices: <OutputFormat as Choices>::choices,
+        },
+        output_only: true,
+        value_in: |o| o.format.name().to_owned(),
+        set: |o, v| {
+            o.format = v.parse().map_err(|e: Expected| e.to_string())?;
+            Ok(())
+        },
+    },
+    QueryOption {
+        key: "tangents",
+        help: "The component type of the TANGENT written",
+        values: OptionValues::OneOf {
+            type_name: "TangentType",
+            choices: <TangentType as Choices>::choices,
+        },
+        output_only: true,
+        value_in: |o| o.tangents.name().to_owned(),
+        set: |o, v| {
+            o.tangents = v.parse().map_err(|e: Expected| e.to_string())?;
+            Ok(())
+        },
+    },
+    QueryOption {
+        key: "compress",
+        help: "How the written geometry is stored",
+        values: OptionValues::OneOf {
+            type_name: "Compression",
+            choices: <Compression as Choices>::choices,
+        },
+        output_only: true,
+        value_in: |o| o.compress.name().to_owned(),
+        set: |o, v| {
+            o.compress = v.parse().map_err(|e: Expected| e.to_string())?;
+            Ok(())
+        },
+    },
 ];
 
 impl SceneOptions {
     /// The options [`SceneOptions::set`] takes by name, as the query string names them.
     pub fn query_keys() -> impl ExactSizeIterator<Item = &'static str> {
-        SETTERS.iter().map(|(key, _)| *key)
+        QUERY_OPTIONS.iter().map(|option| option.key)
     }
 
     /// Sets the option `key` from its text, as a query string gives it (already
     /// percent-decoded). Limits and `write` are the caller's, not the user's, and are not named.
     pub fn set(&mut self, key: &str, value: &str) -> Result<(), OptionError> {
-        let Some((_, setter)) = SETTERS.iter().find(|(name, _)| *name == key) else {
+        let Some(option) = QUERY_OPTIONS.iter().find(|option| option.key == key) else {
             return Err(OptionError::Unknown {
                 key: key.to_owned(),
             });
         };
-        setter(self, value).map_err(|expected| OptionError::Invalid {
+        (option.set)(self, value).map_err(|expected| OptionError::Invalid {
             key: key.to_owned(),
             value: value.to_owned(),
             expected,
@@ -338,6 +426,26 @@ mod tests {
         choices_parse_back::<OutputFormat>(OutputFormat::name);
         choices_parse_back::<TangentType>(TangentType::name);
         choices_parse_back::<Compression>(Compression::name);
+    }
+
+    /// What a document lists for an option is what the setter takes, and reads back as set.
+    #[test]
+    fn every_listed_value_of_every_option_sets_and_reads_back() {
+        for option in &QUERY_OPTIONS {
+            let values: Vec<String> = match option.values {
+                OptionValues::Switch => vec!["true".into(), "false".into()],
+                OptionValues::OneOf { choices, .. } => {
+                    choices().iter().map(|c| c.name.to_owned()).collect()
+                }
+            };
+            let default = (option.value_in)(&SceneOptions::default());
+            assert!(values.contains(&default), "{}: {default}", option.key);
+            for value in values {
+                let mut options = SceneOptions::default();
+                options.set(option.key, &value).unwrap();
+                assert_eq!((option.value_in)(&options), value, "{}", option.key);
+            }
+        }
     }
 
     #[test]

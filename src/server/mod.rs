@@ -7,6 +7,7 @@
 mod held;
 pub mod metrics;
 mod mixed;
+pub mod openapi;
 pub mod pool;
 pub mod problem;
 mod routes;
@@ -121,7 +122,7 @@ pub fn router(app: Arc<App>) -> Router {
             "/problems/{code}",
             axum::routing::get(problem::problem_page),
         )
-        .merge(SwaggerUi::new("/docs").url("/openapi.json", routes::ApiDoc::openapi()))
+        .merge(SwaggerUi::new("/docs").url("/openapi.json", openapi::ApiDoc::openapi()))
         .fallback(problem::not_found)
         .method_not_allowed_fallback(problem::method_not_allowed)
         .layer(middleware::from_fn_with_state(

@@ -9,19 +9,61 @@ use axum::extract::Path;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
+use std::borrow::Cow;
 use utoipa::openapi::schema::{ObjectBuilder, Type};
-use utoipa::openapi::{ContentBuilder, Ref, ResponseBuilder};
+use utoipa::openapi::{ContentBuilder, Header, Ref, RefOr, ResponseBuilder, Schema};
+use utoipa::{PartialSchema, ToSchema};
 
-#[derive(Clone, Debug, Serialize)]
+/// An error, as `application/problem+json` (RFC 9457).
+#[derive(Clone, Debug, Serialize, ToSchema)]
+#[schema(example = json!({
+    "type": "/problems/missing-resource",
+    "title": "A file the scene refers to was not supplied",
+    "status": 422,
+    "detail": "buffer 0 refers to Avocado.bin, which the request does not carry; send it as a multipart part named Avocado.bin",
+    "code": "missing-resource"
+}))]
 pub struct Problem {
+    /// `/problems/<code>`, relative to the server (`GET` it for a line about the code);
+    /// `about:blank` for `not-found` and `method-not-allowed`.
     #[serde(rename = "type")]
     pub type_uri: String,
+    /// Fixed per code.
     pub title: &'static str,
+    /// The HTTP status of the answer.
+    #[schema(minimum = 400, maximum = 599)]
     pub status: u16,
+    /// What happened in this request, and where.
     pub detail: String,
     pub code: ProblemCode,
+    /// Sent as the `Retry-After` header, not in the body.
     #[serde(skip)]
     pub retry_after: Option<u64>,
+}
+
+/// The codes as a string enum, in the order of [`ProblemCode::ALL`], each with its status and
+/// title.
+impl PartialSchema for ProblemCode {
+    fn schema() -> RefOr<Schema> {
+        let explained: Vec<String> = ProblemCode::ALL
+            .iter()
+            .map(|c| format!("`{c}` ({}): {}", c.status(), c.title()))
+            .collect();
+        ObjectBuilder::new()
+            .schema_type(Type::String)
+            .description(Some(format!(
+                "The problem's code, the last segment of its `type`: {}.",
+                explained.join("; ")
+            )))
+            .enum_values(Some(ProblemCode::ALL.iter().map(|c| c.code())))
+            .into()
+    }
+}
+
+impl ToSchema for ProblemCode {
+    fn name() -> Cow<'static, str> {
+        "ProblemCode".into()
+    }
 }
 
 impl Problem {
@@ -34,22 +76,27 @@ impl Problem {
             status: code.status(),
             detail: detail.into(),
             code,
-            retry_after: None,
+            retry_after: seconds_to_retry(code),
         }
     }
 
     pub fn overloaded() -> Self {
-        Problem {
-            retry_after: Some(1),
-            ..Problem::new(
-                ProblemCode::Overloaded,
-                "every worker is busy and the queue is full; retry in a moment",
-            )
-        }
+        Problem::new(
+            ProblemCode::Overloaded,
+            "every worker is busy and the queue is full; retry in a moment",
+        )
     }
 
     pub fn status(&self) -> StatusCode {
         StatusCode::from_u16(self.status).unwrap_or(StatusCode::INTERNAL_SERVER_ERROR)
+    }
+}
+
+/// The `Retry-After` of a code whose request may succeed as it is a moment later.
+fn seconds_to_retry(code: ProblemCode) -> Option<u64> {
+    match code.class() {
+        ErrorClass::Busy => Some(1),
+        _ => None,
     }
 }
 
@@ -89,6 +136,16 @@ impl IntoResponse for Problem {
 }
 
 /// `GET /problems/{code}`: one line saying what a problem `type` means.
+#[utoipa::path(
+    get,
+    path = "/problems/{code}",
+    tag = "service",
+    params(("code" = ProblemCode, Path, description = "A problem's code")),
+    responses(
+        (status = 200, description = "`<code> (HTTP <status>): <title>.`", body = String, content_type = "text/plain"),
+        (status = 404, description = "`not-found`: no such code", body = Problem, content_type = "application/problem+json"),
+    )
+)]
 pub async fn problem_page(Path(slug): Path<String>) -> Response {
     match ProblemCode::from_slug(&slug) {
         Some(code) => (
@@ -111,17 +168,13 @@ pub async fn not_found() -> Problem {
     Problem::new(ProblemCode::NotFound, "no such route; see /docs")
 }
 
-/// Adds the problem+json schema, its `code` enumerated from [`ProblemCode::ALL`], and to every
-/// `POST` operation one response per error status listing its codes, so that the OpenAPI
-/// document cannot disagree with what the service answers.
+/// Adds to every `POST` operation one response per error status, listing its codes, each
+/// `application/problem+json` with the [`Problem`] schema, so that the OpenAPI document cannot
+/// disagree with what the service answers. The 503 says when to retry.
 pub struct ProblemCodes;
 
 impl utoipa::Modify for ProblemCodes {
     fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
-        let components = openapi.components.get_or_insert_with(Default::default);
-        components
-            .schemas
-            .insert("Problem".into(), problem_schema().into());
         for item in openapi.paths.paths.values_mut() {
             if let Some(operation) = item.post.as_mut() {
                 for (status, response) in error_responses() {
@@ -150,51 +203,36 @@ fn error_responses() -> Vec<(String, utoipa::openapi::Response)> {
     statuses
         .into_iter()
         .map(|status| {
-            let codes: Vec<String> = scene_route_codes()
+            let codes: Vec<ProblemCode> = scene_route_codes()
                 .filter(|c| c.status() == status)
+                .collect();
+            let listed: Vec<String> = codes
+                .iter()
                 .map(|c| format!("`{c}`: {}", c.title()))
                 .collect();
             let content = ContentBuilder::new()
-                .schema(Some(Ref::from_schema_name("Problem")))
+                .schema(Some(Ref::from_schema_name(Problem::name())))
                 .build();
-            let response = ResponseBuilder::new()
-                .description(codes.join("; "))
-                .content("application/problem+json", content)
-                .build();
-            (status.to_string(), response)
+            let mut response = ResponseBuilder::new()
+                .description(listed.join("; "))
+                .content("application/problem+json", content);
+            if codes.iter().any(|&c| seconds_to_retry(c).is_some()) {
+                response = response.header("Retry-After", retry_after_header());
+            }
+            (status.to_string(), response.build())
         })
         .collect()
 }
 
-fn problem_schema() -> utoipa::openapi::schema::Object {
-    let string = |description: &str| {
-        ObjectBuilder::new()
-            .schema_type(Type::String)
-            .description(Some(description))
-    };
-    let codes: Vec<String> = ProblemCode::ALL
-        .iter()
-        .map(|c| format!("`{c}` ({}): {}", c.status(), c.title()))
-        .collect();
-    let code = string(&format!("The problem code: {}.", codes.join("; ")))
-        .enum_values(Some(ProblemCode::ALL.iter().map(|c| c.code())));
-    let status = ObjectBuilder::new().schema_type(Type::Integer);
-    ObjectBuilder::new()
-        .schema_type(Type::Object)
-        .description(Some("An error, as application/problem+json (RFC 9457)."))
-        .property(
-            "type",
-            string("`/problems/<code>` (`about:blank` for not-found and method-not-allowed)"),
+/// What a problem with [`seconds_to_retry`] sends besides the body.
+fn retry_after_header() -> Header {
+    Header::builder()
+        .schema(
+            ObjectBuilder::new()
+                .schema_type(Type::Integer)
+                .minimum(Some(0)),
         )
-        .property("title", string("Fixed per code"))
-        .property("status", status)
-        .property("detail", string("What happened in this request"))
-        .property("code", code)
-        .required("type")
-        .required("title")
-        .required("status")
-        .required("detail")
-        .required("code")
+        .description(Some("Seconds to wait before sending the request again"))
         .build()
 }
 
@@ -270,10 +308,22 @@ mod tests {
     #[test]
     fn the_openapi_document_lists_every_code() {
         use utoipa::OpenApi;
-        let api = serde_json::to_value(crate::server::routes::ApiDoc::openapi()).unwrap();
-        let codes = &api["components"]["schemas"]["Problem"]["properties"]["code"]["enum"];
+        let api = serde_json::to_value(crate::server::openapi::ApiDoc::openapi()).unwrap();
+        let schemas = &api["components"]["schemas"];
         let slugs: Vec<&str> = ProblemCode::ALL.iter().map(|c| c.code()).collect();
-        assert_eq!(codes, &serde_json::json!(slugs));
+        assert_eq!(schemas["ProblemCode"]["enum"], serde_json::json!(slugs));
+        assert_eq!(
+            schemas["Problem"]["properties"]["code"]["$ref"],
+            "#/components/schemas/ProblemCode"
+        );
+        let mut required: Vec<&str> = schemas["Problem"]["required"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|v| v.as_str())
+            .collect();
+        required.sort_unstable();
+        assert_eq!(required, ["code", "detail", "status", "title", "type"]);
         let responses = &api["paths"]["/v1/tangents"]["post"]["responses"];
         let described = responses["422"]["description"].as_str().unwrap_or_default();
         assert!(described.contains("`missing-resource`"), "{responses}");
@@ -281,5 +331,21 @@ mod tests {
             responses["404"].is_null(),
             "not-found is no answer of a scene route"
         );
+        for (status, response) in responses.as_object().unwrap() {
+            if status.starts_with(['4', '5']) {
+                let schema = &response["content"]["application/problem+json"]["schema"];
+                assert_eq!(schema["$ref"], "#/components/schemas/Problem", "{status}");
+            }
+        }
+    }
+
+    #[test]
+    fn only_a_busy_server_says_when_to_retry() {
+        for &code in ProblemCode::ALL {
+            let retry = Problem::new(code, "").retry_after;
+            assert_eq!(retry.is_some(), code == ProblemCode::Overloaded, "{code}");
+        }
+        let response = Problem::overloaded().into_response();
+        assert_eq!(response.headers()[header::RETRY_AFTER], "1");
     }
 }

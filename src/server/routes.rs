@@ -3,7 +3,8 @@
 
 use super::held::HeldBody;
 use super::mixed;
-use super::problem::{Problem, ProblemCodes};
+use super::openapi::{AnalyzeQuery, ReportAndScene, SceneFile, SceneUpload, TangentsQuery};
+use super::problem::Problem;
 use super::{App, content_type};
 use crate::scene::error::ProblemCode;
 use crate::scene::input::{self, InputKind};
@@ -16,7 +17,6 @@ use axum::response::{IntoResponse, Response};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use tokio::sync::OwnedSemaphorePermit;
-use utoipa::OpenApi;
 
 fn invalid_option(detail: String) -> Problem {
     Problem::new(ProblemCode::InvalidOption, detail)
@@ -346,32 +346,39 @@ fn wants_multipart(headers: &HeaderMap) -> bool {
 }
 
 /// Adds tangents to a scene.
+///
+/// Answers with the scene, tangents added where its materials need them (GLB, or glTF JSON with
+/// `format=gltf`), and the report's summary in `X-Tspace-Report`; with `Accept: multipart/mixed`,
+/// with the full report, then the scene.
 #[utoipa::path(
     post,
     path = "/v1/tangents",
-    params(
-        ("method" = Option<String>, Query, description = "mikktspace (default), fast, or axis"),
-        ("overwrite" = Option<bool>, Query, description = "recompute tangents a primitive already has"),
-        ("all" = Option<bool>, Query, description = "give tangents to every triangle primitive, whatever its material"),
-        ("format" = Option<String>, Query, description = "glb (default) or gltf (JSON with an embedded buffer)"),
-        ("tangents" = Option<String>, Query, description = "auto (default: normalized byte or short where NORMAL is quantized, else float) or float"),
-        ("compress" = Option<String>, Query, description = "auto (default: EXT_meshopt_compression when the input used meshopt compression, else the input's own layout), none (everything uncompressed) or meshopt (EXT_meshopt_compression whatever the input)"),
-    ),
+    tag = "scenes",
+    params(TangentsQuery),
     request_body(
-        description = "A GLB, a .gltf or an OBJ (model/gltf-binary, model/gltf+json, model/obj, or sniffed), or multipart/form-data with the scene (part `file`) and its buffers, images and MTL as parts named by file name.",
+        description = "A GLB, a .gltf or an OBJ as the whole body, its kind from the Content-Type (model/gltf-binary, model/gltf+json, model/obj or text/x-obj) or, with application/octet-stream, text/plain or none, sniffed; or multipart/form-data with the scene and the files it refers to.",
         content(
-            (Vec<u8> = "model/gltf-binary"),
-            (Vec<u8> = "model/gltf+json"),
-            (Vec<u8> = "model/obj"),
-            (Vec<u8> = "multipart/form-data"),
+            (inline(SceneFile) = "model/gltf-binary"),
+            (inline(SceneFile) = "model/gltf+json"),
+            (inline(SceneFile) = "model/obj"),
+            (inline(SceneFile) = "application/octet-stream"),
+            (SceneUpload = "multipart/form-data", encoding(
+                ("file" = (content_type = "model/gltf-binary, model/gltf+json, model/obj, application/octet-stream")),
+            )),
         )
     ),
     responses(
-        (status = 200, description = "The scene with tangents. Header X-Tspace-Report holds the report's summary; with Accept: multipart/mixed the body holds the full JSON report, then the scene.", content(
-            (Vec<u8> = "model/gltf-binary"),
-            (Vec<u8> = "model/gltf+json"),
-            (Vec<u8> = "multipart/mixed"),
-        )),
+        (status = 200, description = "The scene with tangents: GLB, or glTF JSON with format=gltf; with Accept: multipart/mixed, the full report, then the scene.",
+            headers(("X-Tspace-Report" = String, description = "The report's summary, as one line of JSON (the `summary` of the report; absent from a multipart/mixed answer, which holds the whole report)")),
+            content(
+                (inline(SceneFile) = "model/gltf-binary"),
+                (inline(SceneFile) = "model/gltf+json"),
+                (inline(ReportAndScene) = "multipart/mixed", encoding(
+                    ("report" = (content_type = "application/json")),
+                    ("scene" = (content_type = "model/gltf-binary, model/gltf+json")),
+                )),
+            )
+        ),
         // The error responses are added from ProblemCode by ProblemCodes.
     )
 )]
@@ -417,14 +424,22 @@ pub async fn tangents(
 #[utoipa::path(
     post,
     path = "/v1/analyze",
-    params(
-        ("method" = Option<String>, Query, description = "mikktspace (default), fast, or axis"),
-        ("overwrite" = Option<bool>, Query, description = "as for /v1/tangents"),
-        ("all" = Option<bool>, Query, description = "as for /v1/tangents"),
+    tag = "scenes",
+    params(AnalyzeQuery),
+    request_body(
+        description = "As for /v1/tangents: a GLB, a .gltf or an OBJ as the whole body, or multipart/form-data with the scene and the files it refers to.",
+        content(
+            (inline(SceneFile) = "model/gltf-binary"),
+            (inline(SceneFile) = "model/gltf+json"),
+            (inline(SceneFile) = "model/obj"),
+            (inline(SceneFile) = "application/octet-stream"),
+            (SceneUpload = "multipart/form-data", encoding(
+                ("file" = (content_type = "model/gltf-binary, model/gltf+json, model/obj, application/octet-stream")),
+            )),
+        )
     ),
-    request_body(description = "As for /v1/tangents", content((Vec<u8> = "model/gltf-binary"))),
     responses(
-        (status = 200, description = "The full JSON report", content_type = "application/json"),
+        (status = 200, description = "The full JSON report", body = serde_json::Value, content_type = "application/json"),
         // The error responses are added from ProblemCode by ProblemCodes.
     )
 )]
@@ -445,15 +460,17 @@ pub async fn analyze(
 }
 
 /// Liveness: the process answers.
-#[utoipa::path(get, path = "/healthz", responses((status = 200, description = "ok")))]
+#[utoipa::path(get, path = "/healthz", tag = "service", responses(
+    (status = 200, description = "ok", body = String, content_type = "text/plain")
+))]
 pub async fn healthz() -> &'static str {
     "ok\n"
 }
 
 /// Readiness: accepting work (not shutting down, queue not full).
-#[utoipa::path(get, path = "/readyz", responses(
-    (status = 200, description = "ready"),
-    (status = 503, description = "shutting down or saturated")
+#[utoipa::path(get, path = "/readyz", tag = "service", responses(
+    (status = 200, description = "ready", body = String, content_type = "text/plain"),
+    (status = 503, description = "shutting down or saturated", body = String, content_type = "text/plain")
 ))]
 pub async fn readyz(State(app): State<Arc<App>>) -> Response {
     if app.draining.load(Ordering::Acquire) {
@@ -466,7 +483,9 @@ pub async fn readyz(State(app): State<Arc<App>>) -> Response {
 }
 
 /// Prometheus metrics.
-#[utoipa::path(get, path = "/metrics", responses((status = 200, description = "Prometheus text format", content_type = "text/plain")))]
+#[utoipa::path(get, path = "/metrics", tag = "service", responses(
+    (status = 200, description = "Prometheus text format", body = String, content_type = "text/plain")
+))]
 pub async fn metrics(State(app): State<Arc<App>>) -> Response {
     let text = app.metrics.render(app.pool.queued(), app.pool.running());
     let mut response = Response::new(Body::from(text));
@@ -474,17 +493,6 @@ pub async fn metrics(State(app): State<Arc<App>>) -> Response {
     response.headers_mut().insert(name, value);
     response
 }
-
-#[derive(OpenApi)]
-#[openapi(
-    info(
-        title = "tspace",
-        description = "Tangent frames for glTF, GLB and OBJ scenes: MikkTSpace-exact, with a report of what was found."
-    ),
-    paths(tangents, analyze, healthz, readyz, metrics),
-    modifiers(&ProblemCodes)
-)]
-pub struct ApiDoc;
 
 #[cfg(test)]
 mod tests {
