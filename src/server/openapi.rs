@@ -14,6 +14,7 @@
 use super::problem::{Problem, ProblemCodes};
 use super::routes;
 use crate::scene::options::{OptionValues, QUERY_OPTIONS, QueryOption, SceneOptions};
+use crate::scene::report::Report;
 use std::borrow::Cow;
 use utoipa::openapi::path::{Parameter, ParameterBuilder, ParameterIn};
 use utoipa::openapi::schema::{
@@ -108,17 +109,13 @@ pub struct ReportAndScene;
 
 impl PartialSchema for ReportAndScene {
     fn schema() -> RefOr<Schema> {
-        let report: RefOr<Schema> = ObjectBuilder::new()
-            .schema_type(Type::Object)
-            .description(Some("The full report, as /v1/analyze gives it"))
-            .into();
         ObjectBuilder::new()
             .schema_type(Type::Object)
             .description(Some(
                 "Two parts: `report` (application/json), then `scene` (the scene with tangents, \
                  as a file named scene.glb or scene.gltf).",
             ))
-            .property("report", report)
+            .property("report", Ref::from_schema_name(Report::name()))
             .property("scene", binary("The scene with tangents"))
             .required("report")
             .required("scene")
@@ -297,6 +294,14 @@ mod tests {
         let ok = &tangents["responses"]["200"];
         assert_eq!(ok["content"]["model/gltf-binary"]["schema"]["format"], file);
         assert!(ok["headers"]["X-Tspace-Report"].is_object(), "{ok}");
+        let mixed = &ok["content"]["multipart/mixed"]["schema"]["properties"];
+        assert_eq!(mixed["report"]["$ref"], "#/components/schemas/Report");
+        assert_eq!(mixed["scene"]["format"], file);
+        let analyzed = &api["paths"]["/v1/analyze"]["post"]["responses"]["200"];
+        let report = &analyzed["content"]["application/json"]["schema"];
+        assert_eq!(report["$ref"], "#/components/schemas/Report");
+        let summary = &api["components"]["schemas"]["Summary"]["properties"];
+        assert!(summary["primitives"].is_object(), "{summary}");
         assert_eq!(
             api["paths"]["/v1/analyze"]["post"]["requestBody"]["content"],
             tangents["requestBody"]["content"],

@@ -8,6 +8,7 @@ use super::problem::Problem;
 use super::{App, content_type};
 use crate::scene::error::ProblemCode;
 use crate::scene::input::{self, InputKind};
+use crate::scene::report::Report;
 use crate::scene::uri::{PartSet, percent_decode};
 use crate::scene::{OutputFormat, Processed, SceneLimits, SceneOptions};
 use axum::body::{Body, Bytes};
@@ -369,7 +370,7 @@ fn wants_multipart(headers: &HeaderMap) -> bool {
     ),
     responses(
         (status = 200, description = "The scene with tangents: GLB, or glTF JSON with format=gltf; with Accept: multipart/mixed, the full report, then the scene.",
-            headers(("X-Tspace-Report" = String, description = "The report's summary, as one line of JSON (the `summary` of the report; absent from a multipart/mixed answer, which holds the whole report)")),
+            headers(("X-Tspace-Report" = String, description = "The report's summary as one line of JSON: a Summary, the `summary` of the Report (absent from a multipart/mixed answer, which holds the whole report)")),
             content(
                 (inline(SceneFile) = "model/gltf-binary"),
                 (inline(SceneFile) = "model/gltf+json"),
@@ -439,7 +440,7 @@ pub async fn tangents(
         )
     ),
     responses(
-        (status = 200, description = "The full JSON report", body = serde_json::Value, content_type = "application/json"),
+        (status = 200, description = "The full JSON report", body = Report, content_type = "application/json"),
         // The error responses are added from ProblemCode by ProblemCodes.
     )
 )]
