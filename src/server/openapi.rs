@@ -73,6 +73,24 @@ impl ToSchema for SceneFile {
     }
 }
 
+/// The scene with tangents, as `/v1/tangents` answers it: a GLB, or glTF JSON.
+pub struct WrittenScene;
+
+impl PartialSchema for WrittenScene {
+    fn schema() -> RefOr<Schema> {
+        binary(
+            "The scene with tangents: a GLB, or (format=gltf) glTF JSON with its buffer embedded",
+        )
+        .into()
+    }
+}
+
+impl ToSchema for WrittenScene {
+    fn name() -> Cow<'static, str> {
+        "WrittenScene".into()
+    }
+}
+
 /// A `multipart/form-data` upload: the scene in the part `file`, and every file it refers to
 /// (buffers, images, an OBJ's MTL) in a part of its own, named by its file name.
 pub struct SceneUpload;
@@ -116,7 +134,7 @@ impl PartialSchema for ReportAndScene {
                  as a file named scene.glb or scene.gltf).",
             ))
             .property("report", Ref::from_schema_name(Report::name()))
-            .property("scene", binary("The scene with tangents"))
+            .property("scene", WrittenScene::schema())
             .required("report")
             .required("scene")
             .into()

@@ -3,7 +3,9 @@
 
 use super::held::HeldBody;
 use super::mixed;
-use super::openapi::{AnalyzeQuery, ReportAndScene, SceneFile, SceneUpload, TangentsQuery};
+use super::openapi::{
+    AnalyzeQuery, ReportAndScene, SceneFile, SceneUpload, TangentsQuery, WrittenScene,
+};
 use super::problem::Problem;
 use super::{App, content_type};
 use crate::scene::error::ProblemCode;
@@ -372,8 +374,8 @@ fn wants_multipart(headers: &HeaderMap) -> bool {
         (status = 200, description = "The scene with tangents: GLB, or glTF JSON with format=gltf; with Accept: multipart/mixed, the full report, then the scene.",
             headers(("X-Tspace-Report" = String, description = "The report's summary as one line of JSON: a Summary, the `summary` of the Report (absent from a multipart/mixed answer, which holds the whole report)")),
             content(
-                (inline(SceneFile) = "model/gltf-binary"),
-                (inline(SceneFile) = "model/gltf+json"),
+                (inline(WrittenScene) = "model/gltf-binary"),
+                (inline(WrittenScene) = "model/gltf+json"),
                 (inline(ReportAndScene) = "multipart/mixed", encoding(
                     ("report" = (content_type = "application/json")),
                     ("scene" = (content_type = "model/gltf-binary, model/gltf+json")),
