@@ -244,6 +244,34 @@ fn analysis_reports_without_writing() {
     assert!(parsed["primitives"][0]["audit"]["angle_p99_degrees"].is_number());
 }
 
+/// Analysing a scene warns of the images processing it would: each one not supplied, by code.
+#[test]
+fn analysis_warns_of_the_images_processing_would() {
+    let missing = |write| {
+        let done = run_gltf(
+            "Avocado",
+            "Avocado",
+            SceneOptions {
+                write,
+                ..SceneOptions::default()
+            },
+        );
+        let images: Vec<_> = done
+            .report
+            .findings
+            .iter()
+            .filter(|f| f.code == "image_not_supplied")
+            .map(|f| f.message.split(',').next().unwrap_or("").to_owned())
+            .collect();
+        (images, done.report.summary.findings)
+    };
+    let (analysed, analysed_counts) = missing(false);
+    let (processed, processed_counts) = missing(true);
+    assert_eq!(analysed.len(), 3, "{analysed:?}");
+    assert_eq!(analysed, processed);
+    assert_eq!(analysed_counts, processed_counts);
+}
+
 #[test]
 fn a_missing_buffer_is_named() {
     let gltf = fixture("Avocado/Avocado.gltf");

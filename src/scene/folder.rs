@@ -84,6 +84,20 @@ impl<'a> Resources<'a> for Folder {
     fn fetch(&self, uri: &str) -> Result<Cow<'a, [u8]>, UriError> {
         self.read(uri).map(Cow::Owned)
     }
+
+    /// Without reading it: an analysis asks only whether a texture is there.
+    fn has(&self, uri: &str) -> bool {
+        let UriKind::Relative(relative) = classify(uri) else {
+            return false;
+        };
+        let (Ok(real), Ok(base)) = (
+            self.base.join(relative).canonicalize(),
+            self.base.canonicalize(),
+        ) else {
+            return false;
+        };
+        real.starts_with(&base) && real.is_file()
+    }
 }
 
 /// Builds a [`PartSet`] over files already read.
@@ -126,6 +140,11 @@ mod tests {
         ));
         let small = Folder::of_file(&fixtures().join("Avocado/Avocado.gltf"), 100);
         assert!(small.read("Avocado.bin").is_err());
+        // `has` answers as `read` would, without reading.
+        assert!(folder.has("./Avocado.bin"));
+        assert!(!folder.has("absent.png"));
+        assert!(!folder.has("../Box/Box.glb"));
+        assert!(!folder.has("/etc/passwd"));
     }
 
     #[cfg(unix)]

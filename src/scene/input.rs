@@ -139,7 +139,10 @@ fn process_obj<'a>(
     let report = &mut processed.report;
     report.input_format = "obj";
     report.input_bytes = main.len() as u64 + supplied.bytes;
-    // The OBJ's own notices come first, then the glTF path's.
+    // The OBJ's own notices come first, then the glTF path's. The conversion already named
+    // the textures that were not supplied (textures_not_supplied); the glTF path would name
+    // each again as an image.
+    report.notices.retain(|n| n.code != "image_not_supplied");
     supplied.notices.append(&mut report.notices);
     report.notices = supplied.notices;
     report.finish();

@@ -15,6 +15,11 @@ use tspace_json::{Document, Node};
 pub trait Resources<'a> {
     /// The bytes `uri` (as written in the file, not a `data:` URI) names.
     fn fetch(&self, uri: &str) -> Result<Cow<'a, [u8]>, UriError>;
+
+    /// Whether [`Resources::fetch`] would find `uri`, for an analysis that reads no images.
+    fn has(&self, uri: &str) -> bool {
+        self.fetch(uri).is_ok()
+    }
 }
 
 impl<'a> Resources<'a> for PartSet<'a> {

@@ -483,6 +483,9 @@ fn write_scene<'a>(
     report: &mut Report,
 ) -> Result<Option<Vec<u8>>, SceneError> {
     if !options.write {
+        report
+            .notices
+            .extend(write::unsupplied_images(loaded.doc.root(), resources));
         return Ok(None);
     }
     let keeps_layout = write::compress::resolve(options.compress, loaded.doc.root())

@@ -862,6 +862,21 @@ fn embed_images(root: &Node, resources: &dyn Resources<'_>, warnings: &mut Vec<N
     images
 }
 
+/// For an analysis, which writes nothing: the images [`embed_images`] would warn were not
+/// supplied, so that analysing a scene warns of what processing it would.
+pub fn unsupplied_images(root: &Node, resources: &dyn Resources<'_>) -> Vec<Notice> {
+    let images = root.get("images").and_then(Node::as_array).unwrap_or(&[]);
+    images
+        .iter()
+        .enumerate()
+        .filter_map(|(i, image)| Some((i, image.get("uri")?.as_str()?)))
+        .filter(|(_, u)| uri::decode_data_uri(u).is_none() && !resources.has(u))
+        .map(|(i, u)| Notice::new("image_not_supplied", format!(
+            "images[{i}] refers to {u:?}, which was not supplied; a GLB written from this scene keeps the reference, so that file must travel with it"
+        )))
+        .collect()
+}
+
 /// The output buffer's bytes and where every view lies in it.
 struct Layout {
     bin: Vec<u8>,
