@@ -12,7 +12,7 @@ use super::error::{ProblemCode, SceneError};
 use super::gltf::load::{NoResources, Resources};
 use super::gltf::{self, glb};
 use super::obj::{self, ObjErrorKind};
-use super::obj_gltf::{self, ConvertError, ConvertLimits};
+use super::obj_gltf::{self, ConvertError, ConvertLimits, NormalRequest};
 use super::uri::PartSet;
 use super::{Processed, SceneOptions};
 
@@ -126,7 +126,7 @@ fn process_obj<'a>(
     let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
     supplied.warnings.extend(parse_warnings(&parsed.warnings));
     fetch_textures(mtl.as_ref(), resources, &mut supplied);
-    let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied)?;
+    let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied, options)?;
     let mut processed = gltf::process_with(
         &glb_bytes,
         &NoResources,
@@ -265,19 +265,30 @@ fn convert_to_glb(
     parsed: &obj::Obj,
     mtl: Option<&obj::Mtl>,
     supplied: &mut Supplied<'_>,
+    options: &SceneOptions,
 ) -> Result<Vec<u8>, SceneError> {
     let mut image_parts = PartSet::new();
     for (name, bytes) in &supplied.images {
         // Names are distinct by construction.
         let _ = image_parts.insert(name.clone(), bytes);
     }
-    let converted = obj_gltf::obj_to_gltf(parsed, mtl, &image_parts, &ConvertLimits::default())
-        .map_err(|e| match e {
-            ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
-            // The document tspace built would not serialize: a bug here, not the file's fault.
-            ConvertError::Json(_) => SceneError::new(ProblemCode::Internal, e.to_string()),
-            _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
-        })?;
+    let normals = NormalRequest {
+        normals: options.normals,
+        crease_degrees: options.normals_angle,
+    };
+    let converted = obj_gltf::obj_to_gltf(
+        parsed,
+        mtl,
+        &image_parts,
+        normals,
+        &ConvertLimits::default(),
+    )
+    .map_err(|e| match e {
+        ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
+        // The document tspace built would not serialize: a bug here, not the file's fault.
+        ConvertError::Json(_) => SceneError::new(ProblemCode::Internal, e.to_string()),
+        _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
+    })?;
     supplied.warnings.extend(converted.warnings);
     glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
         .map_err(|e| SceneError::new(ProblemCode::TooLarge, format!("the converted OBJ {e}")))

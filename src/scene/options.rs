@@ -121,6 +121,29 @@ named_choices! {
     }
 }
 
+named_choices! {
+    /// How normals are made for OBJ faces without `vn` (glTF primitives without `NORMAL` get
+    /// flat normals, as the glTF specification requires, whatever this says).
+    pub enum Normals expecting "auto, smooth or flat" {
+        /// The OBJ's smoothing groups where it has `s` statements (smooth within a group, flat
+        /// where `s` is off), else smooth by angle: what modelling tools do.
+        #[default]
+        Auto => "auto", "OBJ without vn: smooth within its s groups (flat where s off), or by angle where it has none";
+        /// Smooth across edges flatter than the crease angle, smoothing groups ignored.
+        Smooth => "smooth", "OBJ without vn: smooth across edges flatter than normals_angle, s groups ignored";
+        /// One normal per face: faceted.
+        Flat => "flat", "OBJ without vn: one normal per face (faceted)";
+    }
+}
+
+/// A crease angle in degrees, from 0 to 180: edges whose faces meet at more stay hard.
+pub fn parse_angle(text: &str) -> Result<f32, Expected> {
+    text.parse::<f32>()
+        .ok()
+        .filter(|a| (0.0..=180.0).contains(a))
+        .ok_or(Expected("an angle in degrees from 0 to 180"))
+}
+
 /// A value outside the accepted ones; the message says what is accepted (callers add which
 /// value was given, and where).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -184,8 +207,12 @@ pub struct SceneOptions {
     /// Give tangents to every triangle primitive, whatever its material.
     pub all: bool,
     pub format: OutputFormat,
-    /// For primitives without normals.
+    /// For glTF primitives without normals (flat, as the glTF specification requires).
     pub normal_mode: NormalMode,
+    /// For OBJ faces without `vn`.
+    pub normals: Normals,
+    /// The crease angle, in degrees, where OBJ normals are smoothed by angle.
+    pub normals_angle: f32,
     /// Write the scene; `false` only analyses and reports.
     pub write: bool,
     /// The TANGENT's component type.
@@ -203,6 +230,8 @@ impl Default for SceneOptions {
             all: false,
             format: OutputFormat::Glb,
             normal_mode: NormalMode::Flat,
+            normals: Normals::Auto,
+            normals_angle: super::obj_gltf::DEFAULT_CREASE_DEGREES,
             write: true,
             tangents: TangentType::Auto,
             compress: Compression::Auto,
@@ -257,7 +286,7 @@ type Setter = fn(&mut SceneOptions, &str) -> Result<(), String>;
 
 /// Every option [`SceneOptions::set`] takes, by the name the query string gives it, with its
 /// parser: the one list that both the setter and the "unknown option" message read.
-const SETTERS: [(&str, Setter); 6] = [
+const SETTERS: [(&str, Setter); 8] = [
     ("method", |o, v| {
         o.method = v
             .parse()
@@ -282,6 +311,14 @@ const SETTERS: [(&str, Setter); 6] = [
     }),
     ("compress", |o, v| {
         o.compress = v.parse().map_err(|e: Expected| e.to_string())?;
+        Ok(())
+    }),
+    ("normals", |o, v| {
+        o.normals = v.parse().map_err(|e: Expected| e.to_string())?;
+        Ok(())
+    }),
+    ("normals_angle", |o, v| {
+        o.normals_angle = parse_angle(v).map_err(|e| e.to_string())?;
         Ok(())
     }),
 ];
@@ -338,6 +375,7 @@ mod tests {
         choices_parse_back::<OutputFormat>(OutputFormat::name);
         choices_parse_back::<TangentType>(TangentType::name);
         choices_parse_back::<Compression>(Compression::name);
+        choices_parse_back::<Normals>(Normals::name);
     }
 
     #[test]
@@ -349,6 +387,8 @@ mod tests {
             ("all", "no"),
             ("format", "gltf"),
             ("compress", "meshopt"),
+            ("normals", "flat"),
+            ("normals_angle", "45.5"),
         ] {
             options.set(key, value).unwrap();
         }
@@ -356,6 +396,10 @@ mod tests {
         assert!(options.overwrite && !options.all);
         assert_eq!(options.format, OutputFormat::GltfEmbedded);
         assert_eq!(options.compress, Compression::Meshopt);
+        assert_eq!(
+            (options.normals, options.normals_angle),
+            (Normals::Flat, 45.5)
+        );
         let mut message = |key, value| options.set(key, value).unwrap_err().to_string();
         assert_eq!(
             message("method", "magic"),
@@ -374,8 +418,18 @@ mod tests {
             "compress=\"zip\": expected auto, none or meshopt"
         );
         assert_eq!(
+            message("normals", "soft"),
+            "normals=\"soft\": expected auto, smooth or flat"
+        );
+        for angle in ["-1", "181", "NaN", "inf", "sixty"] {
+            assert_eq!(
+                message("normals_angle", angle),
+                format!("normals_angle={angle:?}: expected an angle in degrees from 0 to 180")
+            );
+        }
+        assert_eq!(
             message("colour", "red"),
-            "unknown option \"colour\"; the options are method, overwrite, all, format, tangents and compress"
+            "unknown option \"colour\"; the options are method, overwrite, all, format, tangents, compress, normals and normals_angle"
         );
     }
 }
