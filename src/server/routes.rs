@@ -323,6 +323,8 @@ fn wants_multipart(headers: &HeaderMap) -> bool {
         ("format" = Option<String>, Query, description = "glb (default) or gltf (JSON with an embedded buffer)"),
         ("tangents" = Option<String>, Query, description = "auto (default: normalized byte or short where NORMAL is quantized, else float) or float"),
         ("compress" = Option<String>, Query, description = "auto (default: EXT_meshopt_compression when the input used meshopt compression, else the input's own layout), none (everything uncompressed) or meshopt (EXT_meshopt_compression whatever the input)"),
+        ("normals" = Option<String>, Query, description = "auto (default) or smooth or flat: normals for OBJ faces without vn. auto honours the OBJ's smoothing groups (smooth within an s group, flat where s is off) and, in a file without s statements, smooths across edges flatter than normals_angle, as modelling tools' importers do; smooth ignores the groups; flat is faceted. glTF primitives without NORMAL are always flat, as the glTF specification requires"),
+        ("normals_angle" = Option<f32>, Query, description = "crease angle in degrees, 0 to 180 (default 60): where OBJ normals are smoothed by angle, sharper edges stay hard"),
     ),
     request_body(
         description = "A GLB, a .gltf or an OBJ (model/gltf-binary, model/gltf+json, model/obj, or sniffed), or multipart/form-data with the scene (part `file`) and its buffers, images and MTL as parts named by file name.",
@@ -388,6 +390,8 @@ pub async fn tangents(
         ("method" = Option<String>, Query, description = "mikktspace (default), fast, or axis"),
         ("overwrite" = Option<bool>, Query, description = "as for /v1/tangents"),
         ("all" = Option<bool>, Query, description = "as for /v1/tangents"),
+        ("normals" = Option<String>, Query, description = "as for /v1/tangents"),
+        ("normals_angle" = Option<f32>, Query, description = "as for /v1/tangents"),
     ),
     request_body(description = "As for /v1/tangents", content((Vec<u8> = "model/gltf-binary"))),
     responses(
