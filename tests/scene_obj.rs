@@ -396,3 +396,39 @@ fn without_smoothing_groups_the_crease_angle_decides() {
     let (smooth, _) = count(&with_normals("auto", Some("91")));
     assert_eq!(smooth, [1, 1, 1, 1, 2, 2, 2, 2]);
 }
+
+/// A README or a CSV sent as a scene (sniffed as text, or named `.obj`) is not "an OBJ without
+/// faces": it says it is not a scene, with what its lines begin with. An OBJ without faces still
+/// says that.
+#[test]
+fn text_that_is_not_an_obj_says_so() {
+    let readme =
+        b"# tspace\n\nAdds tangents to glTF scenes.\n\n## Building\ncargo build --release\n";
+    let csv = b"name,triangles,vertices\nspot,5856,3225\n";
+    for (text, first) in [
+        (&readme[..], "\"Adds\""),
+        (&csv[..], "\"name,triangles,vertices\""),
+    ] {
+        let kind = InputKind::sniff(text).unwrap();
+        let error = process(kind, text, &PartSet::new(), &SceneOptions::default())
+            .err()
+            .unwrap();
+        assert_eq!(error.code, "unsupported-media-type");
+        let detail = error.to_string();
+        assert!(
+            detail.contains("not a GLB, glTF or OBJ: nothing in it reads as an OBJ statement"),
+            "{detail}"
+        );
+        assert!(detail.contains(first), "{detail}");
+    }
+    let error = process(
+        InputKind::Obj,
+        b"# only points\nv 0 0 0\np 1\n",
+        &PartSet::new(),
+        &SceneOptions::default(),
+    )
+    .err()
+    .unwrap();
+    assert_eq!(error.code, "obj-not-convertible");
+    assert!(error.to_string().contains("no faces"), "{error}");
+}

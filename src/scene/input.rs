@@ -122,6 +122,7 @@ fn process_obj<'a>(
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
     let parsed = parse_obj(main, options)?;
+    check_reads_as_obj(&parsed)?;
     let mut supplied = Supplied::default();
     let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
     supplied.warnings.extend(parse_warnings(&parsed.warnings));
@@ -142,6 +143,29 @@ fn process_obj<'a>(
     supplied.warnings.append(&mut report.warnings);
     report.warnings = supplied.warnings;
     Ok(processed)
+}
+
+/// Refuses text in which not one line is an OBJ statement (a README or CSV sent as a scene, or
+/// named `.obj`), which would otherwise be "an OBJ without faces".
+fn check_reads_as_obj(parsed: &obj::Obj) -> Result<(), SceneError> {
+    let w = &parsed.warnings;
+    if parsed.statements > 0 || w.unsupported_statements == 0 {
+        return Ok(());
+    }
+    let shown: Vec<String> = w
+        .unsupported_keywords
+        .iter()
+        .take(3)
+        .map(|k| format!("{:?}", k.chars().take(24).collect::<String>()))
+        .collect();
+    Err(SceneError::new(
+        ProblemCode::UnsupportedMediaType,
+        format!(
+            "not a GLB, glTF or OBJ: nothing in it reads as an OBJ statement (v, vt, vn, f, ...); \
+             its lines begin with {}",
+            shown.join(", ")
+        ),
+    ))
 }
 
 /// What came with the OBJ: the textures to embed, the bytes read beside it (MTL files and

@@ -144,6 +144,10 @@ pub struct Obj {
     /// smoothing (its faces are all in group 0, as the specification's default has it, but
     /// that is no modeller's choice), which the conversion's normals treat differently.
     pub smoothing_declared: bool,
+    /// Statements read as OBJ ones (every keyword but those counted in
+    /// [`Warnings::unsupported_statements`]). None at all, with lines that are not comments,
+    /// means the text is not an OBJ (a README, a CSV).
+    pub statements: usize,
     pub warnings: Warnings,
 }
 
@@ -527,8 +531,12 @@ impl Reader<'_> {
                 self.obj.smoothing_declared = true;
             }
             b"mtllib" => self.mtllib(s),
-            keyword => self.obj.warnings.unsupported(keyword),
+            keyword => {
+                self.obj.warnings.unsupported(keyword);
+                return Ok(());
+            }
         }
+        self.obj.statements += 1;
         Ok(())
     }
 
@@ -1478,6 +1486,7 @@ mod tests {
             ]
         );
         assert!(obj.smoothing_declared);
+        assert_eq!(obj.statements, 20);
         assert!(!parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n").smoothing_declared);
         let on = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\ns on\nf 1 2 3\ns 0\nf 1 2 3\n");
         assert_eq!(on.groups[0].smoothing, [1, 0]);
