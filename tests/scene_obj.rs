@@ -205,16 +205,17 @@ fn on_the_command_line_an_obj_finds_its_mtl_and_textures_beside_it() {
     );
 }
 
+/// Each position with the distinct normals written there.
+type NormalsAt = Vec<([f32; 3], Vec<[f32; 3]>)>;
+
 /// Per mesh (by name), the distinct normals written at each position, from the output GLB.
-fn normals_by_position(
-    bytes: &[u8],
-) -> std::collections::BTreeMap<String, Vec<([f32; 3], Vec<[f32; 3]>)>> {
+fn normals_by_position(bytes: &[u8]) -> std::collections::BTreeMap<String, NormalsAt> {
     let doc = gltf::Gltf::from_slice(bytes).unwrap();
     let json = glb_json(bytes);
     let blob = doc.blob.as_deref();
     let mut out = std::collections::BTreeMap::new();
     for mesh in doc.meshes() {
-        let mut at: Vec<([f32; 3], Vec<[f32; 3]>)> = Vec::new();
+        let mut at: NormalsAt = Vec::new();
         for p in mesh.primitives() {
             let r = p.reader(|b| (b.index() == 0).then_some(blob).flatten());
             let normals: Vec<[f32; 3]> = r.read_normals().expect("NORMAL").collect();
