@@ -105,14 +105,19 @@ impl Fans {
     }
 }
 
-/// One side of an edge: the triangle, and its corners at the edge's lower and higher welded
-/// position.
+/// One side of an edge: the edge (its two welded positions, lower first), and the side's
+/// triangle's corners at each (16 bytes, as a mesh has three per triangle).
 #[derive(Clone, Copy)]
 struct EdgeSide {
     key: (u32, u32),
-    triangle: u32,
     at_low: u32,
     at_high: u32,
+}
+
+impl EdgeSide {
+    fn triangle(&self) -> usize {
+        self.at_low as usize / 3
+    }
 }
 
 /// Per-corner smooth normals: corners joined into fans across smooth edges, each fan the
@@ -146,20 +151,22 @@ fn smooth_corner_normals(
             let (at_low, at_high) = if a < b { (c, d) } else { (d, c) };
             sides.push(EdgeSide {
                 key: (a.min(b), a.max(b)),
-                triangle: t as u32,
                 at_low: at_low as u32,
                 at_high: at_high as u32,
             });
         }
     }
-    sides.sort_unstable_by_key(|s| (s.key, s.triangle));
-    let group_of = |t: u32| groups.map_or(1, |g| g[t as usize]);
+    // By edge, then by corner (so by triangle): the order, and so the result, depends on the
+    // mesh alone.
+    sides.sort_unstable_by_key(|s| (s.key, s.at_low));
+    let group_of = |t: usize| groups.map_or(1, |g| g[t]);
     let smooth_across = |s: &EdgeSide, r: &EdgeSide| {
-        let (Some(n), Some(m)) = (faces[s.triangle as usize], faces[r.triangle as usize]) else {
+        let (t, u) = (s.triangle(), r.triangle());
+        let (Some(n), Some(m)) = (faces[t], faces[u]) else {
             return false;
         };
-        let same_group = group_of(s.triangle) != 0 && group_of(s.triangle) == group_of(r.triangle);
-        same_group && s.triangle != r.triangle && Vec3::from(n).dot(Vec3::from(m)) >= cos_crease
+        let same_group = group_of(t) != 0 && group_of(t) == group_of(u);
+        same_group && t != u && Vec3::from(n).dot(Vec3::from(m)) >= cos_crease
     };
     let mut fans = Fans::new(indices.len());
     for edge in sides.chunk_by(|s, r| s.key == r.key) {
