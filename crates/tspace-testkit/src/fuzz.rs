@@ -177,7 +177,8 @@ pub fn gltf(data: &[u8]) {
 }
 
 /// OBJ text, then after the first `0xFF` byte (never in UTF-8) an MTL supplied as `a.mtl`; run
-/// with the default options and with the axis method (which needs no UVs).
+/// with the default options and with the axis method (which needs no UVs), the latter with
+/// smooth or flat normals and a crease angle chosen by the input's hash.
 pub fn obj(data: &[u8]) {
     let (text, mtl) = match data.iter().position(|&b| b == 0xFF) {
         Some(at) => (&data[..at], &data[at + 1..]),
