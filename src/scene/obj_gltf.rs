@@ -137,7 +137,7 @@ use json::{Index, Root};
 use serde_json::{Map, Value};
 
 use super::gltf::created;
-use super::obj::{Corner, Material, Mtl, Obj, Texture};
+use super::obj::{Corner, FaceGroup, Material, Mtl, Obj, Texture};
 use super::options::Normals;
 use super::uri::PartSet;
 use tspace_tangent::{CoreError, MeshInput, NormalMode, generate_normals};
@@ -446,14 +446,6 @@ fn usable_attributes(
     (kept, has_uv, has_normal)
 }
 
-/// One triangle of an object, planned: the primitive it joins, its corners as written, and
-/// its smoothing group.
-struct Planned<'o> {
-    signature: Signature<'o>,
-    triangle: [Corner; 3],
-    smoothing: u32,
-}
-
 /// Splits the OBJ's face groups into meshes and primitives, dropping from each triangle an
 /// attribute that is missing or unusable on any of its corners, and giving normals to the
 /// triangles left without (see the module documentation).
@@ -462,7 +454,7 @@ fn plan_meshes(
     request: NormalRequest,
 ) -> Result<(Vec<Mesh<'_>>, Dropped, GeneratedNormals), ConvertError> {
     let mut meshes = Vec::new();
-    let mut current: Option<(Option<&str>, Vec<Planned<'_>>)> = None;
+    let mut current: Option<(Option<&str>, Vec<&FaceGroup>)> = None;
     let mut dropped = Dropped::default();
     let mut generated = GeneratedNormals::default();
     for group in &obj.groups {
@@ -472,30 +464,19 @@ fn plan_meshes(
         let object = group.object.as_deref();
         // A new `o` name starts a new mesh, even one an earlier mesh had.
         if current.as_ref().is_none_or(|(name, _)| *name != object) {
-            if let Some((name, planned)) = current.take() {
-                meshes.push(build_mesh(obj, name, planned, request, &mut generated)?);
+            if let Some((name, groups)) = current.take() {
+                let mesh = plan_mesh(obj, name, &groups, request, &mut dropped, &mut generated)?;
+                meshes.push(mesh);
             }
             current = Some((object, Vec::new()));
         }
-        let Some((_, planned)) = current.as_mut() else {
-            continue; // Unreachable: set just above.
-        };
-        for (t, triangle) in group.triangles.iter().enumerate() {
-            check_corners(obj, triangle)?;
-            let (triangle, uv, normal) = usable_attributes(obj, triangle, &mut dropped);
-            planned.push(Planned {
-                signature: Signature {
-                    material: group.material.as_deref(),
-                    uv,
-                    normal,
-                },
-                triangle,
-                smoothing: group.smoothing.get(t).copied().unwrap_or(0),
-            });
+        if let Some((_, groups)) = current.as_mut() {
+            groups.push(group);
         }
     }
-    if let Some((name, planned)) = current {
-        meshes.push(build_mesh(obj, name, planned, request, &mut generated)?);
+    if let Some((name, groups)) = current {
+        let mesh = plan_mesh(obj, name, &groups, request, &mut dropped, &mut generated)?;
+        meshes.push(mesh);
     }
     if meshes.is_empty() {
         return Err(ConvertError::NoFaces);
@@ -503,18 +484,50 @@ fn plan_meshes(
     Ok((meshes, dropped, generated))
 }
 
-/// One object's mesh: normals for its triangles without, then its primitives.
-fn build_mesh<'o>(
+/// One object's mesh, in two passes over its faces, so that nothing per triangle is kept
+/// between them but the generated normals' numbers: the triangles left without normals get
+/// them, all at once, then every triangle joins its primitive.
+fn plan_mesh<'o>(
     obj: &'o Obj,
     name: Option<&'o str>,
-    mut planned: Vec<Planned<'o>>,
+    groups: &[&'o FaceGroup],
     request: NormalRequest,
+    dropped: &mut Dropped,
     generated: &mut GeneratedNormals,
 ) -> Result<Mesh<'o>, ConvertError> {
-    generate_missing_normals(obj, &mut planned, request, generated)?;
+    let triangles = || {
+        groups.iter().flat_map(|g| {
+            g.triangles.iter().enumerate().map(move |(t, triangle)| {
+                let smoothing = g.smoothing.get(t).copied().unwrap_or(0);
+                (*g, triangle, smoothing)
+            })
+        })
+    };
+    let mut without_normals = Vec::new();
+    for (_, triangle, smoothing) in triangles() {
+        check_corners(obj, triangle)?;
+        // Counted in the second pass.
+        let (triangle, _, normal) = usable_attributes(obj, triangle, &mut Dropped::default());
+        if !normal {
+            without_normals.push((triangle, smoothing));
+        }
+    }
+    let mut made = generate_missing_normals(obj, &without_normals, request, generated)?.into_iter();
+    drop(without_normals);
     let mut builder = MeshBuilder::new(name);
-    for p in planned {
-        builder.add(p.signature, p.triangle)?;
+    for (group, triangle, _) in triangles() {
+        let (mut triangle, uv, normal) = usable_attributes(obj, triangle, dropped);
+        if !normal {
+            for corner in &mut triangle {
+                corner.normal = made.next();
+            }
+        }
+        let signature = Signature {
+            material: group.material.as_deref(),
+            uv,
+            normal: true,
+        };
+        builder.add(signature, triangle)?;
     }
     Ok(builder.finish())
 }
@@ -599,27 +612,25 @@ impl GeneratedNormals {
     }
 }
 
-/// Gives the object's triangles without normals generated ones, all in one call so that
-/// smoothing crosses primitives (materials) as it does in the modeller, and numbers them after
-/// the OBJ's `vn` so that corners refer to them as to any other normal.
+/// Generates normals for an object's triangles without (given with their smoothing group), all
+/// in one call so that smoothing crosses primitives (materials) as it does in the modeller;
+/// numbers them after the OBJ's `vn` and those made before, so that corners refer to them as
+/// to any other normal; and returns each corner's number, triangle by triangle.
 fn generate_missing_normals(
     obj: &Obj,
-    planned: &mut [Planned<'_>],
+    triangles: &[([Corner; 3], u32)],
     request: NormalRequest,
     generated: &mut GeneratedNormals,
-) -> Result<(), ConvertError> {
-    let missing: Vec<usize> = (0..planned.len())
-        .filter(|&i| !planned[i].signature.normal)
-        .collect();
-    if missing.is_empty() {
-        return Ok(());
+) -> Result<Vec<u32>, ConvertError> {
+    if triangles.is_empty() {
+        return Ok(Vec::new());
     }
     // Only the positions these triangles use, so that each object's work is its own size.
     let mut local_of: HashMap<u32, u32> = HashMap::new();
     let mut positions = Vec::new();
-    let mut indices = Vec::with_capacity(3 * missing.len());
-    for &i in &missing {
-        for c in &planned[i].triangle {
+    let mut indices = Vec::with_capacity(3 * triangles.len());
+    for (triangle, _) in triangles {
+        for c in triangle {
             let next = to_u32("the positions of one object", positions.len())?;
             let local = *local_of.entry(c.position).or_insert_with(|| {
                 let p = obj.positions.get(c.position as usize);
@@ -629,8 +640,9 @@ fn generate_missing_normals(
             indices.push(local);
         }
     }
+    drop(local_of);
     let (mode, grouped) = request.mode(obj.smoothing_declared);
-    let groups: Vec<u32> = missing.iter().map(|&i| planned[i].smoothing).collect();
+    let groups: Vec<u32> = triangles.iter().map(|(_, group)| *group).collect();
     let input = MeshInput {
         positions: &positions,
         normals: None,
@@ -647,17 +659,15 @@ fn generate_missing_normals(
             other => ConvertError::Normals(other.to_string()),
         })?;
     let first = obj.normals.len() + generated.normals.len();
-    for (j, &i) in missing.iter().enumerate() {
-        let p = &mut planned[i];
-        for (k, corner) in p.triangle.iter_mut().enumerate() {
-            let made_index = made.indices.get(3 * j + k).copied().unwrap_or(0) as usize;
-            corner.normal = Some(to_u32("the number of normals", first + made_index)?);
-        }
-        p.signature.normal = true;
-    }
+    to_u32("the number of normals", first + made.normals.len())?;
     generated.normals.extend(made.normals);
-    generated.triangles += missing.len();
-    Ok(())
+    generated.triangles += triangles.len();
+    // In range: checked just above.
+    Ok(made
+        .indices
+        .iter()
+        .map(|&i| (first + i as usize) as u32)
+        .collect())
 }
 
 // Planning the materials and images.
