@@ -130,7 +130,7 @@ named_choices! {
         #[default]
         Auto => "auto", "OBJ without vn: smooth within its s groups (flat where s off), or by angle where it has none";
         /// Smooth across edges flatter than the crease angle, smoothing groups ignored.
-        Smooth => "smooth", "OBJ without vn: smooth across edges flatter than normals_angle, s groups ignored";
+        Smooth => "smooth", "OBJ without vn: smooth across edges flatter than the crease angle, s groups ignored";
         /// One normal per face: faceted.
         Flat => "flat", "OBJ without vn: one normal per face (faceted)";
     }
