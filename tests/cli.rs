@@ -906,7 +906,7 @@ fn quiet_keeps_only_failures_and_verbose_adds_each_file() {
     assert_eq!(lines.len(), 5, "{err}");
     assert_eq!(
         lines[0],
-        "tspace: spider/spider.obj: 0 primitives generated, 0 audited, 5 skipped, 0 vertices added; 1 error, 1 warning"
+        "tspace: spider/spider.obj: 0 primitives generated, 0 audited, 4 skipped, 0 vertices added; 1 error, 1 warning"
     );
     assert!(
         lines[1].starts_with("tspace: spider/spider.obj: error: 52 triangles")
@@ -1082,4 +1082,73 @@ fn healthcheck_gets_healthz() {
     let out = tspace(t.path(), &["healthcheck", "--url", &url, "--timeout", "2"]);
     assert_eq!(code(&out), 1);
     assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
+}
+
+/// `--normals` and `--normals-angle` reach an OBJ's conversion: the report says which normals
+/// were made, the written vertices follow, and a bad angle is a usage error.
+#[test]
+fn normals_flag_chooses_an_objs_generated_normals() {
+    let t = TempDir::new("normals");
+    // An open 8-sided prism without vt, vn or s: its sides meet at 45°.
+    let mut prism = String::new();
+    for i in 0..8 {
+        let a = f64::from(i) * std::f64::consts::FRAC_PI_4;
+        prism += &format!("v {} {} 0\nv {} {} 1\n", a.cos(), a.sin(), a.cos(), a.sin());
+    }
+    for i in 0..8 {
+        let j = (i + 1) % 8;
+        prism += &format!(
+            "f {} {} {} {}\n",
+            2 * i + 1,
+            2 * j + 1,
+            2 * j + 2,
+            2 * i + 2
+        );
+    }
+    std::fs::write(t.path().join("prism.obj"), prism).unwrap();
+    for (flags, expected, vertices) in [
+        (&[][..], "smooth, with edges sharper than 60° kept hard", 16),
+        (
+            &["--normals", "flat"][..],
+            "flat (faceted), as normals=flat asks",
+            32,
+        ),
+        (
+            &["--normals", "smooth", "--normals-angle", "30"][..],
+            "smooth, with edges sharper than 30° kept hard",
+            32,
+        ),
+    ] {
+        let mut args = vec![
+            "process",
+            "prism.obj",
+            "-o",
+            "out.glb",
+            "--report",
+            "r.json",
+        ];
+        args.extend_from_slice(flags);
+        let out = tspace(t.path(), &args);
+        assert_eq!(code(&out), 0, "{flags:?}: {}", stderr(&out));
+        let report = read_json(&t.path().join("r.json"));
+        let warning = report["warnings"][0].as_str().unwrap_or("");
+        assert!(
+            warning.starts_with("normals generated for 16 triangles without vn: ")
+                && warning.contains(expected),
+            "{flags:?}: {warning}"
+        );
+        let output = t.path().join("out.glb");
+        assert_valid(&output);
+        let gltf = glb_json(&output);
+        let attributes = &gltf["meshes"][0]["primitives"][0]["attributes"];
+        let normal = attributes["NORMAL"].as_u64().expect("NORMAL") as usize;
+        assert_eq!(gltf["accessors"][normal]["count"], vertices, "{flags:?}");
+    }
+
+    let out = tspace(
+        t.path(),
+        &["analyze", "prism.obj", "--normals-angle", "200"],
+    );
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert!(stderr(&out).contains("from 0 to 180"), "{}", stderr(&out));
 }

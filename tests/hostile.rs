@@ -275,6 +275,7 @@ fn cases() -> Vec<Case> {
         case("OBJ negative index before the start", obj("v 0 0 0\nf -1 -2 -3\n"), 400, "malformed-obj"),
         case("OBJ without texture coordinates", obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), 200, "no_texcoords"),
         case("OBJ of only NaN positions", obj("v nan nan nan\nv nan nan nan\nv nan nan nan\nvt 0 0\nf 1/1 2/1 3/1\n"), 422, "obj-not-convertible"),
+        case("a CSV sent as a scene", Body::Raw("text/plain", b"name,triangles\nspot,5856\n".to_vec()), 415, "unsupported-media-type"),
         case("OBJ with NaN and Inf among good positions", obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan inf 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/1\n"), 200, "non_finite_triangles"),
         case("MTL texture path escaping upward", Body::Parts(vec![
             ("file", "a.obj", b"mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\n".to_vec()),

@@ -829,3 +829,56 @@ async fn upload_mistakes_are_named_in_the_message() {
     }
     running.shutdown().await.unwrap();
 }
+
+/// `normals=` and `normals_angle=` reach an OBJ's conversion, and the report says which
+/// normals were made; an angle out of range is refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_normals_option_chooses_an_objs_generated_normals() {
+    const CUBE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\n\
+                        vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 3/2 4/3 2/4\nf 5/1 6/2 8/3 7/4\n\
+                        f 1/1 2/2 6/3 5/4\nf 3/1 7/2 8/3 4/4\nf 1/1 5/2 7/3 3/4\nf 2/1 4/2 8/3 6/4\n";
+    let (running, base) = server(ServerConfig::local()).await;
+    let analyze = |query: &'static str| {
+        client()
+            .post(format!("{base}/v1/analyze{query}"))
+            .header("content-type", "model/obj")
+            .body(CUBE)
+            .send()
+    };
+    let warning = |report: &Value| report["warnings"][0].as_str().unwrap_or("").to_owned();
+    let report: Value = analyze("").await.unwrap().json().await.unwrap();
+    assert!(
+        warning(&report).starts_with(
+            "normals generated for 12 triangles without vn: smooth, with edges sharper than 60° kept hard"
+        ),
+        "{report}"
+    );
+    let report: Value = analyze("?normals=flat")
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(
+        warning(&report),
+        "normals generated for 12 triangles without vn: flat (faceted), as normals=flat asks"
+    );
+    let report: Value = analyze("?normals=smooth&normals_angle=95.5")
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert!(warning(&report).contains("sharper than 95.5°"), "{report}");
+    let body = problem(
+        analyze("?normals_angle=200").await.unwrap(),
+        400,
+        "invalid-option",
+    )
+    .await;
+    assert!(
+        body["detail"].as_str().unwrap().contains("from 0 to 180"),
+        "{body}"
+    );
+    running.shutdown().await.unwrap();
+}

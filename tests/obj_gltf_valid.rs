@@ -12,7 +12,7 @@ use tspace::scene::SceneOptions;
 use tspace::scene::gltf::glb;
 use tspace::scene::gltf::process;
 use tspace::scene::obj::{Limits, parse_mtl, parse_obj};
-use tspace::scene::obj_gltf::{ConvertLimits, Converted, obj_to_gltf};
+use tspace::scene::obj_gltf::{ConvertLimits, Converted, NormalRequest, obj_to_gltf};
 use tspace::scene::uri::PartSet;
 use tspace_testkit::validator::{ValidatorReport, validate};
 
@@ -48,7 +48,14 @@ fn fixture(path: &str) -> Vec<u8> {
 fn convert(obj: &[u8], mtl: Option<&[u8]>, parts: &PartSet<'_>) -> Converted {
     let obj = parse_obj(obj, &Limits::default()).unwrap();
     let mtl = mtl.map(|m| parse_mtl(m).unwrap());
-    obj_to_gltf(&obj, mtl.as_ref(), parts, &ConvertLimits::default()).unwrap()
+    obj_to_gltf(
+        &obj,
+        mtl.as_ref(),
+        parts,
+        NormalRequest::default(),
+        &ConvertLimits::default(),
+    )
+    .unwrap()
 }
 
 fn to_glb(c: &Converted) -> Vec<u8> {
@@ -250,5 +257,40 @@ fn converted_obj_through_the_glb_pipeline_still_validates() {
             "{}",
             report.summary()
         );
+    }
+}
+
+/// Generated normals validate in every mode (unit length, one per vertex), for smoothing
+/// groups and for an OBJ without any.
+#[test]
+fn generated_normals_validate_in_every_mode() {
+    use tspace::scene::Normals;
+    let groups = fixture("smoothing_groups/smoothing_groups.obj");
+    // A cube without `s` or `vn`.
+    let none = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\n\
+                 f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n"
+        .to_vec();
+    for normals in Normals::ALL.iter().copied() {
+        for (name, text) in [("smoothing_groups", &groups), ("no_groups", &none)] {
+            let obj = parse_obj(text, &Limits::default()).unwrap();
+            let request = NormalRequest {
+                normals,
+                ..NormalRequest::default()
+            };
+            let c = obj_to_gltf(
+                &obj,
+                None,
+                &PartSet::new(),
+                request,
+                &ConvertLimits::default(),
+            )
+            .unwrap();
+            assert!(c.json.contains("\"NORMAL\""), "{name}");
+            let Some(report) = validate(&format!("{name}-{}.glb", normals.name()), &to_glb(&c))
+            else {
+                return;
+            };
+            assert_clean(&report);
+        }
     }
 }

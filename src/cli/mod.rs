@@ -14,8 +14,8 @@ mod tally;
 
 use crate::config::ServeArgs;
 use crate::scene::options::Choices;
-use crate::scene::options::Compression;
-use crate::scene::{OutputFormat, SceneOptions, TangentType};
+use crate::scene::options::{Compression, parse_angle};
+use crate::scene::{Normals, OutputFormat, SceneOptions, TangentType};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -142,6 +142,14 @@ struct SceneArgs {
     /// How the written geometry is stored (EXT_meshopt_compression or not).
     #[arg(long, value_parser = choice::<Compression>(), default_value = "auto")]
     compress: Compression,
+    /// Normals for OBJ faces without vn (glTF primitives without NORMAL are always flat, as
+    /// the glTF specification requires).
+    #[arg(long, value_parser = choice::<Normals>(), default_value = "auto")]
+    normals: Normals,
+    /// The crease angle in degrees (0 to 180) where OBJ normals are smoothed by angle: edges
+    /// sharper than it stay hard.
+    #[arg(long, value_name = "DEGREES", value_parser = parse_angle, default_value = "60")]
+    normals_angle: f32,
 }
 
 impl SceneArgs {
@@ -155,6 +163,8 @@ impl SceneArgs {
             write,
             tangents: self.tangents,
             compress: self.compress,
+            normals: self.normals,
+            normals_angle: self.normals_angle,
             ..SceneOptions::default()
         }
     }

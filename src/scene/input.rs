@@ -12,7 +12,7 @@ use super::error::{ProblemCode, SceneError};
 use super::gltf::load::{NoResources, Resources};
 use super::gltf::{self, glb};
 use super::obj::{self, ObjErrorKind};
-use super::obj_gltf::{self, ConvertError, ConvertLimits};
+use super::obj_gltf::{self, ConvertError, ConvertLimits, NormalRequest};
 use super::report::Notice;
 use super::uri::PartSet;
 use super::{Processed, SceneOptions};
@@ -123,11 +123,12 @@ fn process_obj<'a>(
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
     let parsed = parse_obj(main, options)?;
+    check_reads_as_obj(&parsed)?;
     let mut supplied = Supplied::default();
     let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
     supplied.notices.extend(parse_notices(&parsed.warnings));
     fetch_textures(mtl.as_ref(), resources, &mut supplied);
-    let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied)?;
+    let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied, options)?;
     let mut processed = gltf::process_with(
         &glb_bytes,
         &NoResources,
@@ -147,6 +148,29 @@ fn process_obj<'a>(
     report.notices = supplied.notices;
     report.finish();
     Ok(processed)
+}
+
+/// Refuses text in which not one line is an OBJ statement (a README or CSV sent as a scene, or
+/// named `.obj`), which would otherwise be "an OBJ without faces".
+fn check_reads_as_obj(parsed: &obj::Obj) -> Result<(), SceneError> {
+    let w = &parsed.warnings;
+    if parsed.statements > 0 || w.unsupported_statements == 0 {
+        return Ok(());
+    }
+    let shown: Vec<String> = w
+        .unsupported_keywords
+        .iter()
+        .take(3)
+        .map(|k| format!("{:?}", k.chars().take(24).collect::<String>()))
+        .collect();
+    Err(SceneError::new(
+        ProblemCode::UnsupportedMediaType,
+        format!(
+            "not a GLB, glTF or OBJ: nothing in it reads as an OBJ statement (v, vt, vn, f, ...); \
+             its lines begin with {}",
+            shown.join(", ")
+        ),
+    ))
 }
 
 /// What came with the OBJ: the textures to embed, the bytes read beside it (MTL files and
@@ -288,19 +312,30 @@ fn convert_to_glb(
     parsed: &obj::Obj,
     mtl: Option<&obj::Mtl>,
     supplied: &mut Supplied<'_>,
+    options: &SceneOptions,
 ) -> Result<Vec<u8>, SceneError> {
     let mut image_parts = PartSet::new();
     for (name, bytes) in &supplied.images {
         // Names are distinct by construction.
         let _ = image_parts.insert(name.clone(), bytes);
     }
-    let converted = obj_gltf::obj_to_gltf(parsed, mtl, &image_parts, &ConvertLimits::default())
-        .map_err(|e| match e {
-            ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
-            // The document tspace built would not serialize: a bug here, not the file's fault.
-            ConvertError::Json(_) => SceneError::new(ProblemCode::Internal, e.to_string()),
-            _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
-        })?;
+    let normals = NormalRequest {
+        normals: options.normals,
+        crease_degrees: options.normals_angle,
+    };
+    let converted = obj_gltf::obj_to_gltf(
+        parsed,
+        mtl,
+        &image_parts,
+        normals,
+        &ConvertLimits::default(),
+    )
+    .map_err(|e| match e {
+        ConvertError::TooLarge { .. } => SceneError::new(ProblemCode::TooLarge, e.to_string()),
+        // The document tspace built would not serialize: a bug here, not the file's fault.
+        ConvertError::Json(_) => SceneError::new(ProblemCode::Internal, e.to_string()),
+        _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
+    })?;
     supplied.notices.extend(converted.notices);
     glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
         .map_err(|e| SceneError::new(ProblemCode::TooLarge, format!("the converted OBJ {e}")))

@@ -16,4 +16,4 @@ pub mod options;
 pub mod report;
 pub mod uri;
 
-pub use options::{OutputFormat, Processed, SceneLimits, SceneOptions, TangentType};
+pub use options::{Normals, OutputFormat, Processed, SceneLimits, SceneOptions, TangentType};

@@ -140,6 +140,14 @@ pub struct Obj {
     pub groups: Vec<FaceGroup>,
     /// `mtllib` names, in order, as written.
     pub material_libraries: Vec<String>,
+    /// Whether the file has an `s` statement at all: a file without one says nothing about
+    /// smoothing (its faces are all in group 0, as the specification's default has it, but
+    /// that is no modeller's choice), which the conversion's normals treat differently.
+    pub smoothing_declared: bool,
+    /// Statements read as OBJ ones (every keyword but those counted in
+    /// [`Warnings::unsupported_statements`]). None at all, with lines that are not comments,
+    /// means the text is not an OBJ (a README, a CSV).
+    pub statements: usize,
     pub warnings: Warnings,
 }
 
@@ -504,6 +512,8 @@ impl Reader<'_> {
                 let smoothing = match s.args.first() {
                     None => 0,
                     Some(t) if t.eq_ignore_ascii_case(b"off") => 0,
+                    // Not in the specification, but some exporters write it (three.js reads it).
+                    Some(t) if t.eq_ignore_ascii_case(b"on") => 1,
                     Some(t) => std::str::from_utf8(t)
                         .ok()
                         .and_then(|t| t.parse().ok())
@@ -518,10 +528,15 @@ impl Reader<'_> {
                         })?,
                 };
                 self.smoothing = smoothing;
+                self.obj.smoothing_declared = true;
             }
             b"mtllib" => self.mtllib(s),
-            keyword => self.obj.warnings.unsupported(keyword),
+            keyword => {
+                self.obj.warnings.unsupported(keyword);
+                return Ok(());
+            }
         }
+        self.obj.statements += 1;
         Ok(())
     }
 
@@ -1470,6 +1485,11 @@ mod tests {
                 (Some("Other"), vec![], Some("red paint"), vec![0]),
             ]
         );
+        assert!(obj.smoothing_declared);
+        assert_eq!(obj.statements, 20);
+        assert!(!parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n").smoothing_declared);
+        let on = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\ns on\nf 1 2 3\ns 0\nf 1 2 3\n");
+        assert_eq!(on.groups[0].smoothing, [1, 0]);
     }
 
     #[test]

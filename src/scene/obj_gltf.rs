@@ -1,6 +1,7 @@
 //! A parsed OBJ (and its MTL) turned into a glTF 2.0 document: JSON text plus one binary buffer,
-//! so the rest of tspace can treat an OBJ exactly like a GLB. No tangents or normals are made
-//! here; the tangent step does that later, to the converted document.
+//! so the rest of tspace can treat an OBJ exactly like a GLB. No tangents are made here; the
+//! tangent step does that later, to the converted document. Normals are, for faces without
+//! `vn`, because only the OBJ knows its smoothing groups (see [Normals](#normals)).
 //!
 //! # Structure
 //!
@@ -8,16 +9,17 @@
 //!   that name (faces before any `o` form an unnamed object). Two `o` blocks of the same name
 //!   separated by another object stay two nodes, as two `o` statements made them.
 //! - **Primitives**: one per (material, has UVs, has normals) signature within an object, in
-//!   order of first use, merging every run of that signature across the object. Each is indexed
+//!   order of first use, merging every run of that signature across the object (faces given
+//!   generated normals count as having normals). Each is indexed
 //!   `TRIANGLES`; corners are deduplicated by their (position, uv, normal) index triple, so an
 //!   OBJ vertex shared by faces stays shared. Indices are `u16` when the primitive has at most
 //!   65535 vertices (the largest index is then 65534, never the 65535 primitive-restart value),
 //!   `u32` otherwise.
 //! - **Attributes**, each in its own tightly packed, 4-byte aligned buffer view: `POSITION`
-//!   (with `min`/`max`), `NORMAL` (scaled to unit length), `TEXCOORD_0` (`v` flipped to
-//!   `1 - v`: OBJ's origin is the bottom left, glTF's the top left) and `COLOR_0` (float RGB,
-//!   when the OBJ has vertex colours). `NORMAL` and `TEXCOORD_0` appear only on primitives whose
-//!   faces had them.
+//!   (with `min`/`max`), `NORMAL` (scaled to unit length; every primitive has it), `TEXCOORD_0`
+//!   (`v` flipped to `1 - v`: OBJ's origin is the bottom left, glTF's the top left) and
+//!   `COLOR_0` (float RGB, when the OBJ has vertex colours). `TEXCOORD_0` appears only on
+//!   primitives whose faces had it.
 //! - **Coordinates** are copied as they are: OBJ has no declared up axis or unit, and most
 //!   exporters write glTF's (+Y up, metres or unknown). Winding is kept (both formats have
 //!   counter-clockwise front faces).
@@ -29,10 +31,24 @@
 //! (`ACCESSOR_NON_CLAMPED`) as errors, not warnings. So:
 //!
 //! - Normals are scaled to unit length. A triangle with a corner whose normal has zero length
-//!   or a non-finite component is written without normals (it joins its object's primitive
-//!   without `NORMAL`), like the OBJ reader's faces with normals on some corners only; the
-//!   tangent step generates normals for it. Likewise a triangle with a non-finite texture
-//!   coordinate loses its texture coordinates. Both are counted in a warning.
+//!   or a non-finite component gets generated normals, like the OBJ reader's faces with normals
+//!   on some corners only and faces without `vn`. Likewise a triangle with a non-finite
+//!   texture coordinate loses its texture coordinates. Both are counted in a warning.
+//!
+//! # Normals
+//!
+//! A face without `vn` gets normals made as [`NormalRequest`] says (the `normals` option), per
+//! object, over all its faces without `vn` at once, so that smoothing crosses materials as it
+//! does in the modeller; corners with `vn` keep theirs. `auto`, the default, does what
+//! Blender's, Maya's and 3ds Max's importers do with smoothing groups: when the file has `s`
+//! statements, faces of one group are smooth across every edge they share and faces of
+//! `s off`/`s 0` are flat; when it has none (so nothing says how the modeller shaded it), faces
+//! are smooth across edges flatter than [`DEFAULT_CREASE_DEGREES`] (or `normals_angle`) and
+//! sharper edges stay hard, like an auto-smooth. `smooth` ignores the groups and smooths by
+//! angle; `flat` gives each face its own normal. One warning says which, for how many
+//! triangles, and how to choose otherwise. (Without this, the glTF path would make them flat,
+//! as the glTF specification requires for primitives without `NORMAL`, and a smooth model
+//! would come out faceted with several times the vertices.)
 //! - Vertex colours are clamped to `[0, 1]` (a NaN component becomes 1), counted in a warning.
 //! - Non-finite positions are kept (there is nothing to replace them with); `POSITION`'s
 //!   `min`/`max` cover the finite values only, and a warning says so. A primitive with no finite
@@ -121,9 +137,11 @@ use json::{Index, Root};
 use serde_json::{Map, Value};
 
 use super::gltf::created;
-use super::obj::{Corner, Material, Mtl, Obj, Texture};
+use super::obj::{Corner, FaceGroup, Material, Mtl, Obj, Texture};
+use super::options::Normals;
 use super::report::Notice;
 use super::uri::PartSet;
+use tspace_tangent::{CoreError, MeshInput, NormalMode, generate_normals};
 
 /// glTF's `mode` for triangle lists, which every primitive here is.
 const TRIANGLES: u32 = 4;
@@ -205,6 +223,9 @@ pub enum ConvertError {
         value: u64,
         limit: u64,
     },
+    /// Normals could not be generated for the triangles without them. Not expected (the core
+    /// refuses only sizes, reported as [`ConvertError::TooLarge`]).
+    Normals(String),
     /// The document could not be written as JSON. Not expected (every value written is finite
     /// and every key a string), so an error rather than a panic if it ever happens.
     Json(String),
@@ -232,6 +253,12 @@ impl fmt::Display for ConvertError {
             ),
             ConvertError::TooLarge { what, value, limit } => {
                 write!(f, "{what} would be {value}, more than the limit of {limit}")
+            }
+            ConvertError::Normals(e) => {
+                write!(
+                    f,
+                    "normals could not be generated for faces without vn: {e}"
+                )
             }
             ConvertError::Json(e) => {
                 write!(
@@ -421,47 +448,230 @@ fn usable_attributes(
 }
 
 /// Splits the OBJ's face groups into meshes and primitives, dropping from each triangle an
-/// attribute that is missing or unusable on any of its corners (see the module documentation).
-fn plan_meshes(obj: &Obj) -> Result<(Vec<Mesh<'_>>, Dropped), ConvertError> {
+/// attribute that is missing or unusable on any of its corners, and giving normals to the
+/// triangles left without (see the module documentation).
+fn plan_meshes(
+    obj: &Obj,
+    request: NormalRequest,
+) -> Result<(Vec<Mesh<'_>>, Dropped, GeneratedNormals), ConvertError> {
     let mut meshes = Vec::new();
-    let mut current: Option<MeshBuilder<'_>> = None;
+    let mut current: Option<(Option<&str>, Vec<&FaceGroup>)> = None;
     let mut dropped = Dropped::default();
+    let mut generated = GeneratedNormals::default();
     for group in &obj.groups {
         if group.triangles.is_empty() {
             continue;
         }
         let object = group.object.as_deref();
         // A new `o` name starts a new mesh, even one an earlier mesh had.
-        if current.as_ref().is_none_or(|m| m.name != object) {
-            if let Some(done) = current.take() {
-                meshes.push(done.finish());
+        if current.as_ref().is_none_or(|(name, _)| *name != object) {
+            if let Some((name, groups)) = current.take() {
+                let mesh = plan_mesh(obj, name, &groups, request, &mut dropped, &mut generated)?;
+                meshes.push(mesh);
             }
-            current = Some(MeshBuilder::new(object));
+            current = Some((object, Vec::new()));
         }
-        let Some(builder) = current.as_mut() else {
-            continue; // Unreachable: set just above.
-        };
-        for triangle in &group.triangles {
-            check_corners(obj, triangle)?;
-            let (triangle, uv, normal) = usable_attributes(obj, triangle, &mut dropped);
-            let material = group.material.as_deref();
-            builder.add(
-                Signature {
-                    material,
-                    uv,
-                    normal,
-                },
-                triangle,
-            )?;
+        if let Some((_, groups)) = current.as_mut() {
+            groups.push(group);
         }
     }
-    if let Some(done) = current {
-        meshes.push(done.finish());
+    if let Some((name, groups)) = current {
+        let mesh = plan_mesh(obj, name, &groups, request, &mut dropped, &mut generated)?;
+        meshes.push(mesh);
     }
     if meshes.is_empty() {
         return Err(ConvertError::NoFaces);
     }
-    Ok((meshes, dropped))
+    Ok((meshes, dropped, generated))
+}
+
+/// One object's mesh, in two passes over its faces, so that nothing per triangle is kept
+/// between them but the generated normals' numbers: the triangles left without normals get
+/// them, all at once, then every triangle joins its primitive.
+fn plan_mesh<'o>(
+    obj: &'o Obj,
+    name: Option<&'o str>,
+    groups: &[&'o FaceGroup],
+    request: NormalRequest,
+    dropped: &mut Dropped,
+    generated: &mut GeneratedNormals,
+) -> Result<Mesh<'o>, ConvertError> {
+    let triangles = || {
+        groups.iter().flat_map(|g| {
+            g.triangles.iter().enumerate().map(move |(t, triangle)| {
+                let smoothing = g.smoothing.get(t).copied().unwrap_or(0);
+                (*g, triangle, smoothing)
+            })
+        })
+    };
+    let mut without_normals = Vec::new();
+    for (_, triangle, smoothing) in triangles() {
+        check_corners(obj, triangle)?;
+        // Counted in the second pass.
+        let (triangle, _, normal) = usable_attributes(obj, triangle, &mut Dropped::default());
+        if !normal {
+            without_normals.push((triangle, smoothing));
+        }
+    }
+    let mut made = generate_missing_normals(obj, &without_normals, request, generated)?.into_iter();
+    drop(without_normals);
+    let mut builder = MeshBuilder::new(name);
+    for (group, triangle, _) in triangles() {
+        let (mut triangle, uv, normal) = usable_attributes(obj, triangle, dropped);
+        if !normal {
+            for corner in &mut triangle {
+                corner.normal = made.next();
+            }
+        }
+        let signature = Signature {
+            material: group.material.as_deref(),
+            uv,
+            normal: true,
+        };
+        builder.add(signature, triangle)?;
+    }
+    Ok(builder.finish())
+}
+
+/// How normals are made for the triangles of an OBJ without (usable) `vn`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NormalRequest {
+    pub normals: Normals,
+    /// The crease angle, in degrees, where normals are smoothed by angle.
+    pub crease_degrees: f32,
+}
+
+impl Default for NormalRequest {
+    fn default() -> Self {
+        NormalRequest {
+            normals: Normals::Auto,
+            crease_degrees: DEFAULT_CREASE_DEGREES,
+        }
+    }
+}
+
+/// The crease angle of `normals=auto` and `normals=smooth` when none is given: edges sharper
+/// than this stay hard. Between the 30° of Blender's auto smooth and the 89° some renderers
+/// suggest: a cube stays a cube, a 6-sided cylinder's sides (60° apart) stay flat, anything
+/// rounder is smooth.
+pub const DEFAULT_CREASE_DEGREES: f32 = 60.0;
+
+impl NormalRequest {
+    /// The core's mode, and whether the OBJ's smoothing groups bound the smoothing.
+    fn mode(self, smoothing_declared: bool) -> (NormalMode, bool) {
+        let by_angle = NormalMode::SmoothByAngle {
+            crease_degrees: self.crease_degrees,
+        };
+        match self.normals {
+            Normals::Flat => (NormalMode::Flat, false),
+            Normals::Smooth => (by_angle, false),
+            // Within a smoothing group every edge is smooth, as in 3ds Max, Maya and Blender.
+            Normals::Auto if smoothing_declared => (
+                NormalMode::SmoothByAngle {
+                    crease_degrees: 180.0,
+                },
+                true,
+            ),
+            Normals::Auto => (by_angle, false),
+        }
+    }
+}
+
+/// The normals made for triangles without `vn`, numbered after the OBJ's own.
+#[derive(Default)]
+struct GeneratedNormals {
+    normals: Vec<[f32; 3]>,
+    triangles: usize,
+}
+
+impl GeneratedNormals {
+    /// The one sentence that says which normals were made and how to choose others.
+    fn warn(&self, request: NormalRequest, smoothing_declared: bool, warnings: &mut Vec<Notice>) {
+        if self.triangles == 0 {
+            return;
+        }
+        let angle = request.crease_degrees;
+        let how = match request.normals {
+            Normals::Flat => "flat (faceted), as normals=flat asks".to_owned(),
+            Normals::Smooth => format!(
+                "smooth, with edges sharper than {angle}° kept hard, as normals=smooth asks \
+                 (smoothing groups ignored)"
+            ),
+            Normals::Auto if smoothing_declared => "smooth within the OBJ's smoothing groups \
+                 (s), flat where s is off; normals=smooth to smooth by angle instead, \
+                 normals=flat for faceted"
+                .to_owned(),
+            Normals::Auto => format!(
+                "smooth, with edges sharper than {angle}° kept hard (the OBJ has no smoothing \
+                 groups); normals=flat for faceted, normals_angle to change the angle"
+            ),
+        };
+        warnings.push(Notice::new(
+            "normals_generated",
+            format!(
+                "normals generated for {} triangles without vn: {how}",
+                self.triangles
+            ),
+        ));
+    }
+}
+
+/// Generates normals for an object's triangles without (given with their smoothing group), all
+/// in one call so that smoothing crosses primitives (materials) as it does in the modeller;
+/// numbers them after the OBJ's `vn` and those made before, so that corners refer to them as
+/// to any other normal; and returns each corner's number, triangle by triangle.
+fn generate_missing_normals(
+    obj: &Obj,
+    triangles: &[([Corner; 3], u32)],
+    request: NormalRequest,
+    generated: &mut GeneratedNormals,
+) -> Result<Vec<u32>, ConvertError> {
+    if triangles.is_empty() {
+        return Ok(Vec::new());
+    }
+    // Only the positions these triangles use, so that each object's work is its own size.
+    let mut local_of: HashMap<u32, u32> = HashMap::new();
+    let mut positions = Vec::new();
+    let mut indices = Vec::with_capacity(3 * triangles.len());
+    for (triangle, _) in triangles {
+        for c in triangle {
+            let next = to_u32("the positions of one object", positions.len())?;
+            let local = *local_of.entry(c.position).or_insert_with(|| {
+                let p = obj.positions.get(c.position as usize);
+                positions.push(p.copied().unwrap_or_default());
+                next
+            });
+            indices.push(local);
+        }
+    }
+    drop(local_of);
+    let (mode, grouped) = request.mode(obj.smoothing_declared);
+    let groups: Vec<u32> = triangles.iter().map(|(_, group)| *group).collect();
+    let input = MeshInput {
+        positions: &positions,
+        normals: None,
+        uvs: None,
+        indices: Some(&indices),
+    };
+    let made =
+        generate_normals(&input, mode, grouped.then_some(&groups[..])).map_err(|e| match e {
+            CoreError::TooLarge { count } => too_large(
+                "the corners without normals in one object",
+                count,
+                u64::from(u32::MAX / 2),
+            ),
+            other => ConvertError::Normals(other.to_string()),
+        })?;
+    let first = obj.normals.len() + generated.normals.len();
+    to_u32("the number of normals", first + made.normals.len())?;
+    generated.normals.extend(made.normals);
+    generated.triangles += triangles.len();
+    // In range: checked just above.
+    Ok(made
+        .indices
+        .iter()
+        .map(|&i| (first + i as usize) as u32)
+        .collect())
 }
 
 // Planning the materials and images.
@@ -827,7 +1037,7 @@ impl Dropped {
                 "invalid_normals_dropped",
                 format!(
                     "{} triangles use a normal of zero length or not finite, which glTF does not \
-                 allow; they were written without normals (the tangent step generates them)",
+                     allow; they were given generated normals, as faces without vn are",
                     self.normals
                 ),
             ));
@@ -1193,6 +1403,8 @@ struct PrimitiveAccessors {
 /// attribute and index list.
 struct Writer<'a> {
     obj: &'a Obj,
+    /// Normals made for triangles without `vn`, numbered after the OBJ's own.
+    generated_normals: &'a [[f32; 3]],
     bin: Bin,
     accessors: Vec<json::Accessor>,
     flaws: Flaws,
@@ -1252,9 +1464,14 @@ impl Writer<'_> {
 
     /// `NORMAL`, scaled to unit length ([`plan_meshes`] kept out normals that cannot be).
     fn normals(&mut self, vertices: &[Corner]) -> Result<AccessorIndex, ConvertError> {
-        let obj = self.obj;
+        let (obj, generated) = (self.obj, self.generated_normals);
         let normal = |c: &Corner| {
-            let n = c.normal.and_then(|i| obj.normals.get(i as usize));
+            let n = c.normal.and_then(|i| {
+                let i = i as usize;
+                obj.normals
+                    .get(i)
+                    .or_else(|| generated.get(i - obj.normals.len()))
+            });
             normalize(n.copied().unwrap_or_default())
         };
         let view = self.bin.floats(vertices.iter().map(normal))?;
@@ -1346,12 +1563,14 @@ struct Written {
 /// Writes every primitive, mesh by mesh, then the embedded images after the geometry.
 fn write_buffer(
     obj: &Obj,
+    generated_normals: &[[f32; 3]],
     meshes: &[Mesh<'_>],
     table: &ImageTable<'_>,
     bin: Bin,
 ) -> Result<Written, ConvertError> {
     let mut writer = Writer {
         obj,
+        generated_normals,
         bin,
         accessors: Vec::new(),
         flaws: Flaws::default(),
@@ -1838,16 +2057,18 @@ pub fn obj_to_gltf(
     obj: &Obj,
     mtl: Option<&Mtl>,
     images: &PartSet<'_>,
+    normals: NormalRequest,
     limits: &ConvertLimits,
 ) -> Result<Converted, ConvertError> {
     let mut warnings = Vec::new();
-    let (meshes, dropped) = plan_meshes(obj)?;
+    let (meshes, dropped, generated) = plan_meshes(obj, normals)?;
     dropped.warn(&mut warnings);
+    generated.warn(normals, obj.smoothing_declared, &mut warnings);
     let material_table = plan_materials(&meshes, mtl, &mut warnings);
     let (table, textures) = plan_textures(&material_table.materials, images, &mut warnings);
     let total = buffer_size(&meshes, obj.colors.is_some(), &table);
     let bin = allocate_buffer(total, limits)?;
-    let written = write_buffer(obj, &meshes, &table, bin)?;
+    let written = write_buffer(obj, &generated.normals, &meshes, &table, bin)?;
     debug_assert_eq!(written.bytes.len() as u64, total);
     written.flaws.warn(&mut warnings);
     let stats = count(&meshes, material_table.materials.len(), &table);
@@ -1903,7 +2124,14 @@ mod tests {
         for &(name, bytes) in parts {
             set.insert(name, bytes).unwrap();
         }
-        obj_to_gltf(&obj, mtl.as_ref(), &set, &ConvertLimits::default()).unwrap()
+        obj_to_gltf(
+            &obj,
+            mtl.as_ref(),
+            &set,
+            NormalRequest::default(),
+            &ConvertLimits::default(),
+        )
+        .unwrap()
     }
 
     fn convert(obj_text: &str) -> Converted {
@@ -2069,7 +2297,35 @@ mod tests {
     fn assert_faithful(obj: &Obj, c: &Converted) -> Vec<Vec<Prim>> {
         let doc = read(c);
         let prims = primitives(&doc);
-        assert_eq!(gltf_triangles(&prims), obj_triangles(obj));
+        let (written, expected) = (gltf_triangles(&prims), obj_triangles(obj));
+        let without_normals = |keys: &[Key]| {
+            let mut keys: Vec<Key> = keys
+                .iter()
+                .map(|t| {
+                    t.iter()
+                        .map(|(p, uv, _)| (p.clone(), uv.clone(), None))
+                        .collect()
+                })
+                .collect();
+            keys.sort();
+            keys
+        };
+        assert_eq!(without_normals(&written), without_normals(&expected));
+        // The OBJ's own normals are kept as they are; the other triangles' were generated.
+        let mut unclaimed: HashMap<&Key, usize> = HashMap::new();
+        for t in &written {
+            *unclaimed.entry(t).or_default() += 1;
+        }
+        for t in expected.iter().filter(|t| t.iter().all(|c| c.2.is_some())) {
+            let left = unclaimed.get_mut(t).filter(|n| **n > 0);
+            *left.unwrap_or_else(|| panic!("{t:?} lost its normals")) -= 1;
+        }
+        for p in prims.iter().flatten() {
+            for n in p.normals.as_deref().expect("every primitive has NORMAL") {
+                let length = n.iter().map(|c| c * c).sum::<f32>().sqrt();
+                assert!((length - 1.0).abs() < 1e-5, "{n:?}");
+            }
+        }
         for (mesh, gmesh) in prims.iter().zip(doc.meshes()) {
             for (p, gp) in mesh.iter().zip(gmesh.primitives()) {
                 assert!(p.indices.iter().all(|&i| (i as usize) < p.positions.len()));
@@ -2216,24 +2472,20 @@ mod tests {
         let c = convert(&text);
         let prims = assert_faithful(&obj(&text), &c);
         let p = &prims[0];
-        assert_eq!(p.len(), 4);
+        assert_eq!(p.len(), 2);
         let shape: Vec<(bool, bool, usize)> = p
             .iter()
             .map(|p| (p.uvs.is_some(), p.normals.is_some(), p.indices.len() / 3))
             .collect();
-        // The partial face (`f 1/1 2 3/3`) lost its UVs in the reader and joined the bare ones.
-        assert_eq!(
-            shape,
-            [
-                (false, false, 3),
-                (true, false, 1),
-                (false, true, 1),
-                (true, true, 2)
-            ]
-        );
-        // The bare primitive shares positions across its three faces.
-        assert_eq!(p[0].positions.len(), 4);
-        assert_eq!(p[0].indices, [0, 1, 2, 0, 2, 3, 0, 1, 2]);
+        // Faces without vn got normals and joined those with, signature for signature; the
+        // partial face (`f 1/1 2 3/3`) lost its UVs in the reader and joined the bare ones.
+        assert_eq!(shape, [(false, true, 4), (true, true, 3)]);
+        // The bare faces `f 1 2 3` (twice) and `f 1 3 4` share the edge 1-3 three times over:
+        // not smoothed across (which two belong together is unknown), so `f 1 3 4` keeps its
+        // own corners, and the twice-written face shares its three. The `vn` face's corners
+        // keep the file's normal.
+        assert_eq!(p[0].positions.len(), 9);
+        assert_eq!(p[0].indices, [0, 1, 2, 3, 4, 5, 6, 7, 8, 0, 1, 2]);
     }
 
     #[test]
@@ -2275,7 +2527,7 @@ mod tests {
             ]
         );
         assert_eq!(
-            c.messages(),
+            c.messages()[1..],
             ["1 vertex colours outside [0, 1] were clamped (a NaN component became 1)"]
         );
     }
@@ -2634,6 +2886,7 @@ mod tests {
                 positions: (0..vertices)
                     .map(|i| [i as f32, (i % 7) as f32, 0.0])
                     .collect(),
+                normals: vec![[0.0, 0.0, 1.0]],
                 ..Obj::default()
             };
             let mut triangles: Vec<[Corner; 3]> = (0..vertices / 3)
@@ -2641,7 +2894,7 @@ mod tests {
                     [0, 1, 2].map(|k| Corner {
                         position: (3 * t + k) as u32,
                         uv: None,
-                        normal: None,
+                        normal: Some(0),
                     })
                 })
                 .collect();
@@ -2649,7 +2902,7 @@ mod tests {
                 triangles.push([vertices - 1, 0, 1].map(|p| Corner {
                     position: p as u32,
                     uv: None,
-                    normal: None,
+                    normal: Some(0),
                 }));
             }
             obj.groups.push(FaceGroup {
@@ -2657,7 +2910,14 @@ mod tests {
                 triangles,
                 ..FaceGroup::default()
             });
-            let c = obj_to_gltf(&obj, None, &PartSet::new(), &ConvertLimits::default()).unwrap();
+            let c = obj_to_gltf(
+                &obj,
+                None,
+                &PartSet::new(),
+                NormalRequest::default(),
+                &ConvertLimits::default(),
+            )
+            .unwrap();
             let prims = assert_faithful(&obj, &c);
             assert_eq!(prims[0][0].positions.len(), vertices);
             assert_eq!(
@@ -2678,13 +2938,19 @@ mod tests {
             .iter()
             .map(|p| (p.uvs.is_some(), p.normals.is_some()))
             .collect();
-        assert_eq!(
-            shape,
-            [(true, true), (false, true), (true, false), (false, false)]
-        );
+        assert_eq!(shape, [(true, true), (false, true)]);
+        // The file's normal (scaled to unit length), then the generated one of the triangle
+        // whose `vn` has zero length: +Z, as that triangle has no area either.
         assert_eq!(
             prims[0][0].normals.as_deref().unwrap(),
-            [[0.0, 0.6, 0.8]; 3]
+            [
+                [0.0, 0.6, 0.8],
+                [0.0, 0.6, 0.8],
+                [0.0, 0.6, 0.8],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0]
+            ]
         );
         assert!(prims[0][0].positions[1][1].is_nan());
         assert_eq!(prims[0][0].positions[2][2], f32::INFINITY);
@@ -2697,21 +2963,31 @@ mod tests {
             .next()
             .unwrap()
             .bounding_box();
-        assert_eq!((bounds.min, bounds.max), ([0.0; 3], [1.0, 1.0, 0.0]));
+        assert_eq!((bounds.min, bounds.max), ([0.0; 3], [1.0, 1.0, 1.0]));
         assert_eq!(
             c.messages(),
             [
                 "1 triangles use a normal of zero length or not finite, which glTF does not \
-                 allow; they were written without normals (the tangent step generates them)",
+                 allow; they were given generated normals, as faces without vn are",
                 "1 triangles use a texture coordinate that is NaN or infinite; they were written \
                  without texture coordinates",
+                "normals generated for 2 triangles without vn: smooth, with edges sharper than \
+                 60° kept hard (the OBJ has no smoothing groups); normals=flat for faceted, \
+                 normals_angle to change the angle",
                 "2 vertices have a NaN or infinite position, kept as they are; POSITION min and \
                  max cover the finite values only",
             ]
         );
         // A primitive with no finite y at all has no bounds: refused.
         let o = obj("v 0 nan 0\nv 1 inf 0\nv 0 -inf 1\nf 1 2 3\n");
-        let err = obj_to_gltf(&o, None, &PartSet::new(), &ConvertLimits::default()).unwrap_err();
+        let err = obj_to_gltf(
+            &o,
+            None,
+            &PartSet::new(),
+            NormalRequest::default(),
+            &ConvertLimits::default(),
+        )
+        .unwrap_err();
         assert_eq!(
             err,
             ConvertError::NoFinitePosition {
@@ -2728,14 +3004,15 @@ mod tests {
         let none = PartSet::new();
         let limits = ConvertLimits::default();
         for text in ["", "v 0 0 0\nv 1 0 0\nl 1 2\np 1\nf 1 2\n"] {
-            let err = obj_to_gltf(&obj(text), None, &none, &limits).unwrap_err();
+            let err = obj_to_gltf(&obj(text), None, &none, NormalRequest::default(), &limits)
+                .unwrap_err();
             assert_eq!(err, ConvertError::NoFaces);
             assert!(err.to_string().contains("no faces"));
         }
         let mut bad = obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
         bad.groups[0].triangles[0][1].normal = Some(5);
         assert_eq!(
-            obj_to_gltf(&bad, None, &none, &limits).unwrap_err(),
+            obj_to_gltf(&bad, None, &none, NormalRequest::default(), &limits).unwrap_err(),
             ConvertError::IndexOutOfRange {
                 what: "normal",
                 index: 5,
@@ -2745,39 +3022,43 @@ mod tests {
         let mut bad = obj("v 0 0 0 1 1 1\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
         bad.colors.as_mut().unwrap().truncate(1);
         assert!(matches!(
-            obj_to_gltf(&bad, None, &none, &limits).unwrap_err(),
+            obj_to_gltf(&bad, None, &none, NormalRequest::default(), &limits).unwrap_err(),
             ConvertError::IndexOutOfRange {
                 what: "vertex colour",
                 ..
             }
         ));
         let good = obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-        // 3 positions (36 bytes) and 3 u16 indices (6, padded to 8).
+        // 3 positions and 3 generated normals (36 bytes each) and 3 u16 indices (6, padded to 8).
         let tight = ConvertLimits {
-            max_buffer_bytes: 44,
+            max_buffer_bytes: 80,
         };
         assert_eq!(
-            obj_to_gltf(&good, None, &none, &tight).unwrap().bin.len(),
-            44
+            obj_to_gltf(&good, None, &none, NormalRequest::default(), &tight)
+                .unwrap()
+                .bin
+                .len(),
+            80
         );
         let err = obj_to_gltf(
             &good,
             None,
             &none,
+            NormalRequest::default(),
             &ConvertLimits {
-                max_buffer_bytes: 43,
+                max_buffer_bytes: 79,
             },
         )
         .unwrap_err();
         assert!(matches!(
             err,
             ConvertError::TooLarge {
-                value: 44,
-                limit: 43,
+                value: 80,
+                limit: 79,
                 ..
             }
         ));
-        assert!(err.to_string().contains("44"));
+        assert!(err.to_string().contains("80"));
     }
 
     #[test]
@@ -2848,12 +3129,20 @@ mod tests {
         let mtl = parse_mtl(&mtl_bytes).unwrap();
         let mut parts = PartSet::new();
         parts.insert("SpiderTex.jpg", JPEG).unwrap();
-        let c = obj_to_gltf(&obj, Some(&mtl), &parts, &ConvertLimits::default()).unwrap();
+        let c = obj_to_gltf(
+            &obj,
+            Some(&mtl),
+            &parts,
+            NormalRequest::default(),
+            &ConvertLimits::default(),
+        )
+        .unwrap();
         let prims = assert_faithful(&obj, &c);
-        assert_eq!(c.stats.vertices, distinct_corners(&obj));
+        assert!(c.stats.vertices >= distinct_corners(&obj));
         assert_eq!(prims.len(), 1);
         // 19 groups, 4 materials used, every face with UVs and normals, but one `vn 0 0 0`
-        // (used by 32 corners): the triangles using it form a fifth primitive, without normals.
+        // (used by 32 corners): the 52 triangles using it get generated normals instead and
+        // stay in their material's primitive.
         let shape: Vec<(Option<usize>, bool, bool, usize)> = prims[0]
             .iter()
             .map(|p| {
@@ -2870,8 +3159,7 @@ mod tests {
             [
                 (Some(0), true, true, 80),
                 (Some(1), true, true, 260),
-                (Some(2), true, true, 900),
-                (Some(2), true, false, 52),
+                (Some(2), true, true, 952),
                 (Some(3), true, true, 76)
             ]
         );
@@ -2904,9 +3192,14 @@ mod tests {
             assert_eq!((pbr.metallic_factor(), pbr.roughness_factor()), (0.0, 1.0));
         }
         assert_eq!(c.stats.images_embedded, 1);
-        assert_eq!(c.messages().len(), 2, "{:?}", c.messages());
+        assert_eq!(c.messages().len(), 3, "{:?}", c.messages());
         assert!(c.messages()[0].contains("use a normal of zero length"));
-        assert!(c.messages()[1].contains("\"wal67ar_small.jpg\", \"drkwood2.jpg\""));
+        // The spider has `s` statements: its smoothing groups are honoured.
+        assert!(c.messages()[1].starts_with(
+            "normals generated for 52 triangles without vn: smooth within the OBJ's smoothing \
+             groups (s)"
+        ));
+        assert!(c.messages()[2].contains("\"wal67ar_small.jpg\", \"drkwood2.jpg\""));
     }
 
     #[test]
@@ -2917,8 +3210,14 @@ mod tests {
         ) {
             let obj = parse_obj(&obj_bytes, &Limits::default()).unwrap();
             let mtl = parse_mtl(&mtl_bytes).unwrap();
-            let c =
-                obj_to_gltf(&obj, Some(&mtl), &PartSet::new(), &ConvertLimits::default()).unwrap();
+            let c = obj_to_gltf(
+                &obj,
+                Some(&mtl),
+                &PartSet::new(),
+                NormalRequest::default(),
+                &ConvertLimits::default(),
+            )
+            .unwrap();
             let prims = assert_faithful(&obj, &c);
             assert_eq!(c.stats.vertices, distinct_corners(&obj));
             let p = &prims[0][0];
@@ -2936,7 +3235,14 @@ mod tests {
         }
         if let Some(bytes) = fixture("negative_indices/negative_indices.obj") {
             let obj = parse_obj(&bytes, &Limits::default()).unwrap();
-            let c = obj_to_gltf(&obj, None, &PartSet::new(), &ConvertLimits::default()).unwrap();
+            let c = obj_to_gltf(
+                &obj,
+                None,
+                &PartSet::new(),
+                NormalRequest::default(),
+                &ConvertLimits::default(),
+            )
+            .unwrap();
             let prims = assert_faithful(&obj, &c);
             assert_eq!(c.stats.vertices, distinct_corners(&obj));
             assert_eq!(prims[0].len(), 1);
@@ -2966,10 +3272,11 @@ mod tests {
                 .unwrap();
             let mut set = PartSet::new();
             set.insert("m.png", PNG).unwrap();
-            match obj_to_gltf(&obj, Some(&mtl), &set, &ConvertLimits::default()) {
+            match obj_to_gltf(&obj, Some(&mtl), &set, NormalRequest::default(), &ConvertLimits::default()) {
                 Ok(c) => {
                     assert_faithful(&obj, &c);
-                    prop_assert_eq!(c.stats.vertices, distinct_corners(&obj));
+                    // Generated normals may split a corner, never merge two.
+                    prop_assert!(c.stats.vertices >= distinct_corners(&obj));
                 }
                 Err(ConvertError::NoFaces) => prop_assert_eq!(obj.triangle_count(), 0),
                 Err(ConvertError::NoFinitePosition { .. }) => {}

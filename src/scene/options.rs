@@ -122,6 +122,29 @@ named_choices! {
     }
 }
 
+named_choices! {
+    /// How normals are made for OBJ faces without `vn` (glTF primitives without `NORMAL` get
+    /// flat normals, as the glTF specification requires, whatever this says).
+    pub enum Normals expecting "auto, smooth or flat" {
+        /// The OBJ's smoothing groups where it has `s` statements (smooth within a group, flat
+        /// where `s` is off), else smooth by angle: what modelling tools do.
+        #[default]
+        Auto => "auto", "OBJ without vn: smooth within its s groups (flat where s off), or by angle where it has none";
+        /// Smooth across edges flatter than the crease angle, smoothing groups ignored.
+        Smooth => "smooth", "OBJ without vn: smooth across edges flatter than the crease angle, s groups ignored";
+        /// One normal per face: faceted.
+        Flat => "flat", "OBJ without vn: one normal per face (faceted)";
+    }
+}
+
+/// A crease angle in degrees, from 0 to 180: edges whose faces meet at more stay hard.
+pub fn parse_angle(text: &str) -> Result<f32, Expected> {
+    text.parse::<f32>()
+        .ok()
+        .filter(|a| (0.0..=180.0).contains(a))
+        .ok_or(Expected("an angle in degrees from 0 to 180"))
+}
+
 /// A value outside the accepted ones; the message says what is accepted (callers add which
 /// value was given, and where).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -185,8 +208,12 @@ pub struct SceneOptions {
     /// Give tangents to every triangle primitive, whatever its material.
     pub all: bool,
     pub format: OutputFormat,
-    /// For primitives without normals.
+    /// For glTF primitives without normals (flat, as the glTF specification requires).
     pub normal_mode: NormalMode,
+    /// For OBJ faces without `vn`.
+    pub normals: Normals,
+    /// The crease angle, in degrees, where OBJ normals are smoothed by angle.
+    pub normals_angle: f32,
     /// Write the scene; `false` only analyses and reports.
     pub write: bool,
     /// The TANGENT's component type.
@@ -204,6 +231,8 @@ impl Default for SceneOptions {
             all: false,
             format: OutputFormat::Glb,
             normal_mode: NormalMode::Flat,
+            normals: Normals::Auto,
+            normals_angle: super::obj_gltf::DEFAULT_CREASE_DEGREES,
             write: true,
             tangents: TangentType::Auto,
             compress: Compression::Auto,
@@ -261,6 +290,8 @@ type Setter = fn(&mut SceneOptions, &str) -> Result<(), String>;
 pub enum OptionValues {
     /// A boolean, read by [`parse_switch`].
     Switch,
+    /// An angle in degrees from 0 to 180, read by [`parse_angle`].
+    Degrees,
     /// One of a fixed list of names: the type's name (`Method`) and its [`Choices`], the list
     /// its [`FromStr`] reads.
     OneOf {
@@ -291,7 +322,7 @@ fn switch_name(on: bool) -> String {
 }
 
 /// Every option [`SceneOptions::set`] takes, in the order messages and documents list them.
-pub const QUERY_OPTIONS: [QueryOption; 6] = [
+pub const QUERY_OPTIONS: [QueryOption; 8] = [
     QueryOption {
         key: "method",
         help: "How tangents are computed",
@@ -372,6 +403,31 @@ pub const QUERY_OPTIONS: [QueryOption; 6] = [
             Ok(())
         },
     },
+    QueryOption {
+        key: "normals",
+        help: "Normals for OBJ faces without vn. auto honours the OBJ's smoothing groups (smooth within an s group, flat where s is off) and, in a file without s statements, smooths across edges flatter than normals_angle, as modelling tools' importers do; smooth ignores the groups; flat is faceted. glTF primitives without NORMAL are always flat, as the glTF specification requires",
+        values: OptionValues::OneOf {
+            type_name: "Normals",
+            choices: <Normals as Choices>::choices,
+        },
+        output_only: false,
+        value_in: |o| o.normals.name().to_owned(),
+        set: |o, v| {
+            o.normals = v.parse().map_err(|e: Expected| e.to_string())?;
+            Ok(())
+        },
+    },
+    QueryOption {
+        key: "normals_angle",
+        help: "The crease angle of smooth OBJ normals, in degrees: edges sharper than this stay hard",
+        values: OptionValues::Degrees,
+        output_only: false,
+        value_in: |o| o.normals_angle.to_string(),
+        set: |o, v| {
+            o.normals_angle = parse_angle(v).map_err(|e| e.to_string())?;
+            Ok(())
+        },
+    },
 ];
 
 impl SceneOptions {
@@ -426,6 +482,7 @@ mod tests {
         choices_parse_back::<OutputFormat>(OutputFormat::name);
         choices_parse_back::<TangentType>(TangentType::name);
         choices_parse_back::<Compression>(Compression::name);
+        choices_parse_back::<Normals>(Normals::name);
     }
 
     /// What a document lists for an option is what the setter takes, and reads back as set.
@@ -434,6 +491,7 @@ mod tests {
         for option in &QUERY_OPTIONS {
             let values: Vec<String> = match option.values {
                 OptionValues::Switch => vec!["true".into(), "false".into()],
+                OptionValues::Degrees => ["0", "45.5", "60", "180"].map(String::from).to_vec(),
                 OptionValues::OneOf { choices, .. } => {
                     choices().iter().map(|c| c.name.to_owned()).collect()
                 }
@@ -457,6 +515,8 @@ mod tests {
             ("all", "no"),
             ("format", "gltf"),
             ("compress", "meshopt"),
+            ("normals", "flat"),
+            ("normals_angle", "45.5"),
         ] {
             options.set(key, value).unwrap();
         }
@@ -464,6 +524,10 @@ mod tests {
         assert!(options.overwrite && !options.all);
         assert_eq!(options.format, OutputFormat::GltfEmbedded);
         assert_eq!(options.compress, Compression::Meshopt);
+        assert_eq!(
+            (options.normals, options.normals_angle),
+            (Normals::Flat, 45.5)
+        );
         let mut message = |key, value| options.set(key, value).unwrap_err().to_string();
         assert_eq!(
             message("method", "magic"),
@@ -482,8 +546,18 @@ mod tests {
             "compress=\"zip\": expected auto, none or meshopt"
         );
         assert_eq!(
+            message("normals", "soft"),
+            "normals=\"soft\": expected auto, smooth or flat"
+        );
+        for angle in ["-1", "181", "NaN", "inf", "sixty"] {
+            assert_eq!(
+                message("normals_angle", angle),
+                format!("normals_angle={angle:?}: expected an angle in degrees from 0 to 180")
+            );
+        }
+        assert_eq!(
             message("colour", "red"),
-            "unknown option \"colour\"; the options are method, overwrite, all, format, tangents and compress"
+            "unknown option \"colour\"; the options are method, overwrite, all, format, tangents, compress, normals and normals_angle"
         );
     }
 }

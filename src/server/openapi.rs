@@ -179,6 +179,17 @@ fn query_parameter(option: &QueryOption) -> Parameter {
                 .default(Some(default.into()))
                 .into()
         }
+        OptionValues::Degrees => {
+            let default: f64 = (option.value_in)(&SceneOptions::default())
+                .parse()
+                .unwrap_or_default();
+            ObjectBuilder::new()
+                .schema_type(Type::Number)
+                .minimum(Some(0.0))
+                .maximum(Some(180.0))
+                .default(Some(default.into()))
+                .into()
+        }
         OptionValues::OneOf { type_name, .. } => Ref::from_schema_name(type_name).into(),
     };
     ParameterBuilder::new()

@@ -88,6 +88,7 @@ mod vectors;
 mod weld;
 
 pub use diagnostics::{Diagnostics, FallbackCounts, Tally};
+pub use normals::{GeneratedNormals, generate_normals};
 pub use split::SplitPlan;
 
 use rayon::prelude::*;
@@ -190,14 +191,15 @@ pub enum Weighting {
     Area,
 }
 
-/// How normals are made when the mesh has none.
+/// How normals are made when the mesh has none (by [`generate`], or by [`generate_normals`] on
+/// their own).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum NormalMode {
     /// One normal per triangle, as the glTF specification requires for meshes without normals.
     #[default]
     Flat,
     /// Angle-weighted vertex normals, averaged across edges whose faces meet at less than
-    /// `crease_degrees`; sharper edges stay hard.
+    /// `crease_degrees`; sharper edges, and edges of more than two triangles, stay hard.
     SmoothByAngle {
         /// Faces whose normals differ by more than this many degrees keep a hard edge.
         crease_degrees: f32,
@@ -272,7 +274,8 @@ impl Tangents {
 pub enum CoreError {
     /// A per-vertex slice does not have as many entries as `positions`.
     AttributeLength {
-        /// `"normals"` or `"uvs"`.
+        /// `"normals"`, `"uvs"`, or `"smoothing_groups"` (one per triangle) for
+        /// [`generate_normals`].
         attribute: &'static str,
         /// The number of positions.
         expected: usize,
@@ -391,8 +394,8 @@ impl<'a> Prepared<'a> {
                 },
             },
             None => {
-                let generated = normals::generate(input, normal_mode);
-                let remap = &generated.split.source_vertex;
+                let generated = normals::generate(input, normal_mode, None);
+                let remap = &generated.source_vertex;
                 let positions = remap.iter().map(|&v| input.positions[v as usize]).collect();
                 let uvs = input
                     .uvs
@@ -429,7 +432,7 @@ impl<'a> Prepared<'a> {
                 positions,
                 normals: &generated.normals,
                 uvs: uvs.as_deref(),
-                indices: &generated.split.indices,
+                indices: &generated.indices,
             },
         }
     }
@@ -456,7 +459,7 @@ impl<'a> Prepared<'a> {
             .map(|&v| generated.normals[v as usize])
             .collect();
         for v in &mut split.source_vertex {
-            *v = generated.split.source_vertex[*v as usize];
+            *v = generated.source_vertex[*v as usize];
         }
         diagnostics.generated_normals = Some(*normal_mode);
         diagnostics.vertices_in = *vertices_in as u64;

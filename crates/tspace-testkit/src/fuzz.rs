@@ -26,7 +26,7 @@ use tspace::scene::gltf::glb as glb_container;
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
 use tspace::scene::input::{self, InputKind};
 use tspace::scene::uri::PartSet;
-use tspace::scene::{OutputFormat, SceneLimits, SceneOptions, TangentType};
+use tspace::scene::{Normals, OutputFormat, SceneLimits, SceneOptions, TangentType};
 use tspace_tangent::{
     self as tangent, CoreError, MeshInput, Method, NormalMode, Options, UvOrigin, Weighting,
 };
@@ -79,6 +79,9 @@ fn scene_options(data: &[u8]) -> SceneOptions {
             TangentType::Auto
         },
         compress: Default::default(),
+        // OBJ only: the OBJ target chooses its own.
+        normals: Default::default(),
+        normals_angle: 60.0,
         limits: LIMITS,
     }
 }
@@ -174,7 +177,8 @@ pub fn gltf(data: &[u8]) {
 }
 
 /// OBJ text, then after the first `0xFF` byte (never in UTF-8) an MTL supplied as `a.mtl`; run
-/// with the default options and with the axis method (which needs no UVs).
+/// with the default options and with the axis method (which needs no UVs), the latter with
+/// smooth or flat normals and a crease angle chosen by the input's hash.
 pub fn obj(data: &[u8]) {
     let (text, mtl) = match data.iter().position(|&b| b == 0xFF) {
         Some(at) => (&data[..at], &data[at + 1..]),
@@ -189,10 +193,18 @@ pub fn obj(data: &[u8]) {
         ..SceneOptions::default()
     };
     run_scene(InputKind::Obj, text, &parts, &options);
+    // Every primitive gets tangents, with the other ways of making normals.
+    let h = hash(data);
     let axis = SceneOptions {
         method: Method::Axis,
         all: true,
         format: OutputFormat::GltfEmbedded,
+        normals: if h & 1 == 0 {
+            Normals::Smooth
+        } else {
+            Normals::Flat
+        },
+        normals_angle: (h >> 1 & 0xFF) as f32 * (180.0 / 255.0),
         ..options
     };
     run_scene(InputKind::Obj, text, &parts, &axis);

@@ -862,7 +862,7 @@ fn embed_images(root: &Node, resources: &dyn Resources<'_>, warnings: &mut Vec<N
     images
 }
 
-/// For an analysis, which writes nothing: the images [`embed_images`] would warn were not
+/// For an analysis, which writes nothing: the images `embed_images` would warn were not
 /// supplied, so that analysing a scene warns of what processing it would.
 pub fn unsupplied_images(root: &Node, resources: &dyn Resources<'_>) -> Vec<Notice> {
     let images = root.get("images").and_then(Node::as_array).unwrap_or(&[]);
