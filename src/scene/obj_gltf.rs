@@ -50,10 +50,11 @@
 //! as the glTF specification requires for primitives without `NORMAL`, and a smooth model
 //! would come out faceted with several times the vertices.)
 //! - Vertex colours are clamped to `[0, 1]` (a NaN component becomes 1), counted in a warning.
-//! - Non-finite positions are kept (there is nothing to replace them with); `POSITION`'s
-//!   `min`/`max` cover the finite values only, and a warning says so. A primitive with no finite
-//!   value at all on some axis has no meaningful bounds, and glTF requires them, so that is an
-//!   error ([`ConvertError::NoFinitePosition`]).
+//! - A triangle with a NaN or infinite position is dropped, counted in a warning: it cannot be
+//!   drawn, glTF's `POSITION` needs finite `min`/`max`, and the Khronos validator rejects
+//!   non-finite accessor values, so keeping it would make the whole file invalid. An OBJ whose
+//!   every triangle is dropped has nothing to draw: an error
+//!   ([`ConvertError::NoFiniteTriangles`]), as an OBJ without faces is.
 //!
 //! # Materials (from the MTL; only those used, in order of first use)
 //!
@@ -210,13 +211,8 @@ pub enum ConvertError {
         index: u32,
         count: usize,
     },
-    /// Every value of one coordinate in a primitive is NaN or infinite, so the `POSITION`
-    /// bounds glTF requires do not exist.
-    NoFinitePosition {
-        mesh: usize,
-        primitive: usize,
-        axis: char,
-    },
+    /// Every triangle has a NaN or infinite position, so none can be written.
+    NoFiniteTriangles { triangles: usize },
     /// A count or size beyond what glTF (u32 lengths) or [`ConvertLimits`] allows.
     TooLarge {
         what: &'static str,
@@ -242,14 +238,10 @@ impl fmt::Display for ConvertError {
                 f,
                 "a face refers to {what} {index} (counted from 0), but there are only {count}"
             ),
-            ConvertError::NoFinitePosition {
-                mesh,
-                primitive,
-                axis,
-            } => write!(
+            ConvertError::NoFiniteTriangles { triangles } => write!(
                 f,
-                "mesh {mesh} primitive {primitive}: every {axis} coordinate is NaN or infinite, \
-                 so its POSITION has no bounds"
+                "every one of the OBJ's {triangles} triangles has a NaN or infinite position: \
+                 nothing can be drawn"
             ),
             ConvertError::TooLarge { what, value, limit } => {
                 write!(f, "{what} would be {value}, more than the limit of {limit}")
@@ -385,6 +377,18 @@ struct Dropped {
     normals: usize,
     /// Texture coordinates not finite on some corner.
     uvs: usize,
+    /// A position not finite on some corner: the whole triangle.
+    positions: usize,
+}
+
+/// Whether every corner of `triangle` (whose indices [`check_corners`] has checked) has a
+/// finite position.
+fn finite_positions(obj: &Obj, triangle: &[Corner; 3]) -> bool {
+    triangle.iter().all(|c| {
+        obj.positions
+            .get(c.position as usize)
+            .is_some_and(|p| p.iter().all(|v| v.is_finite()))
+    })
 }
 
 /// Whether a normal can be scaled to unit length.
@@ -482,6 +486,13 @@ fn plan_meshes(
     if meshes.is_empty() {
         return Err(ConvertError::NoFaces);
     }
+    // An object whose every triangle was dropped has no mesh to write.
+    meshes.retain(|m| !m.primitives.is_empty());
+    if meshes.is_empty() {
+        return Err(ConvertError::NoFiniteTriangles {
+            triangles: dropped.positions,
+        });
+    }
     Ok((meshes, dropped, generated))
 }
 
@@ -507,7 +518,10 @@ fn plan_mesh<'o>(
     let mut without_normals = Vec::new();
     for (_, triangle, smoothing) in triangles() {
         check_corners(obj, triangle)?;
-        // Counted in the second pass.
+        // Dropped, and counted, in the second pass.
+        if !finite_positions(obj, triangle) {
+            continue;
+        }
         let (triangle, _, normal) = usable_attributes(obj, triangle, &mut Dropped::default());
         if !normal {
             without_normals.push((triangle, smoothing));
@@ -517,6 +531,10 @@ fn plan_mesh<'o>(
     drop(without_normals);
     let mut builder = MeshBuilder::new(name);
     for (group, triangle, _) in triangles() {
+        if !finite_positions(obj, triangle) {
+            dropped.positions += 1;
+            continue;
+        }
         let (mut triangle, uv, normal) = usable_attributes(obj, triangle, dropped);
         if !normal {
             for corner in &mut triangle {
@@ -1022,6 +1040,16 @@ fn pbr(m: &Material) -> Pbr {
 
 impl Dropped {
     fn warn(&self, warnings: &mut Vec<Notice>) {
+        if self.positions > 0 {
+            warnings.push(Notice::new(
+                "non_finite_positions",
+                format!(
+                    "{} triangles have a NaN or infinite position and were dropped: they cannot \
+                     be drawn, and glTF does not allow non-finite values",
+                    self.positions
+                ),
+            ));
+        }
         if self.partial > 0 {
             warnings.push(Notice::new(
                 "obj_faces_repaired",
@@ -1324,19 +1352,11 @@ impl Bin {
 /// Counts of flawed values, for warnings.
 #[derive(Default)]
 struct Flaws {
-    nonfinite_positions: usize,
     colors_clamped: usize,
 }
 
 impl Flaws {
     fn warn(&self, warnings: &mut Vec<Notice>) {
-        if self.nonfinite_positions > 0 {
-            warnings.push(Notice::new("non_finite_positions", format!(
-                "{} vertices have a NaN or infinite position, kept as they are; POSITION min and \
-                 max cover the finite values only",
-                self.nonfinite_positions
-            )));
-        }
         if self.colors_clamped > 0 {
             warnings.push(Notice::new(
                 "colors_clamped",
@@ -1349,29 +1369,17 @@ impl Flaws {
     }
 }
 
-/// The smallest and largest finite value on each axis, counting the positions with a value
-/// that is not finite; `Err(axis)` for an axis with no finite value at all.
-fn finite_bounds(
-    positions: impl Iterator<Item = [f32; 3]>,
-    nonfinite: &mut usize,
-) -> Result<([f32; 3], [f32; 3]), usize> {
+/// The smallest and largest value on each axis (of finite positions: see [`plan_meshes`]).
+fn bounds(positions: impl Iterator<Item = [f32; 3]>) -> ([f32; 3], [f32; 3]) {
     let mut min = [f32::INFINITY; 3];
     let mut max = [f32::NEG_INFINITY; 3];
     for p in positions {
-        if p.iter().any(|c| !c.is_finite()) {
-            *nonfinite += 1;
-        }
         for k in 0..3 {
-            if p[k].is_finite() {
-                min[k] = min[k].min(p[k]);
-                max[k] = max[k].max(p[k]);
-            }
+            min[k] = min[k].min(p[k]);
+            max[k] = max[k].max(p[k]);
         }
     }
-    match (0..3).find(|&k| min[k] > max[k]) {
-        Some(axis) => Err(axis),
-        None => Ok((min, max)),
-    }
+    (min, max)
 }
 
 /// `n` scaled to unit length; `n` itself if it has none ([`plan_meshes`] keeps those out).
@@ -1437,12 +1445,9 @@ impl Writer<'_> {
         Ok(index)
     }
 
-    /// `POSITION`, with the `min` and `max` glTF requires (see the module documentation).
-    fn positions(
-        &mut self,
-        vertices: &[Corner],
-        (mesh, primitive): (usize, usize),
-    ) -> Result<AccessorIndex, ConvertError> {
+    /// `POSITION`, with the `min` and `max` glTF requires ([`plan_meshes`] kept out the
+    /// triangles with a position that is not finite).
+    fn positions(&mut self, vertices: &[Corner]) -> Result<AccessorIndex, ConvertError> {
         let obj = self.obj;
         let position = |c: &Corner| {
             obj.positions
@@ -1450,14 +1455,7 @@ impl Writer<'_> {
                 .copied()
                 .unwrap_or_default()
         };
-        let nonfinite = &mut self.flaws.nonfinite_positions;
-        let bounds = finite_bounds(vertices.iter().map(position), nonfinite).map_err(|k| {
-            ConvertError::NoFinitePosition {
-                mesh,
-                primitive,
-                axis: ['x', 'y', 'z'].get(k).copied().unwrap_or('?'),
-            }
-        })?;
+        let bounds = bounds(vertices.iter().map(position));
         let view = self.bin.floats(vertices.iter().map(position))?;
         self.accessor(view, FLOAT_VEC3, vertices.len(), Some(bounds))
     }
@@ -1521,16 +1519,12 @@ impl Writer<'_> {
     }
 
     /// One primitive: its attributes, each in its own view, then its indices.
-    fn primitive(
-        &mut self,
-        primitive: &Primitive<'_>,
-        at: (usize, usize),
-    ) -> Result<PrimitiveAccessors, ConvertError> {
+    fn primitive(&mut self, primitive: &Primitive<'_>) -> Result<PrimitiveAccessors, ConvertError> {
         let vertices = &primitive.vertices;
         to_u32("the vertex count of one primitive", vertices.len())?;
         to_u32("the index count of one primitive", primitive.indices.len())?;
         let mut attributes = BTreeMap::new();
-        attributes.insert(Valid(Semantic::Positions), self.positions(vertices, at)?);
+        attributes.insert(Valid(Semantic::Positions), self.positions(vertices)?);
         if primitive.signature.normal {
             attributes.insert(Valid(Semantic::Normals), self.normals(vertices)?);
         }
@@ -1576,9 +1570,8 @@ fn write_buffer(
         flaws: Flaws::default(),
     };
     let mut primitives = Vec::with_capacity(meshes.len());
-    for (m, mesh) in meshes.iter().enumerate() {
-        let written = mesh.primitives.iter().enumerate();
-        let written = written.map(|(p, primitive)| writer.primitive(primitive, (m, p)));
+    for mesh in meshes {
+        let written = mesh.primitives.iter().map(|p| writer.primitive(p));
         primitives.push(written.collect::<Result<Vec<_>, _>>()?);
     }
     let image_views = table
@@ -2928,45 +2921,33 @@ mod tests {
     }
 
     #[test]
-    fn unusable_normals_and_uvs_are_dropped_per_triangle_and_bad_positions_kept() {
+    fn unusable_normals_and_uvs_are_dropped_per_triangle_and_bad_positions_drop_it() {
+        // Triangle 1 has NaN and infinite positions: dropped. Triangle 2 has a NaN UV, 3 a
+        // normal of zero length, 4 nothing but positions.
         let text = "v 0 0 0\nv 1 nan 0\nv 0 1 inf\nv 0 0 0\nv 1 1 1\nvt 0 nan\nvt 0.5 0.5\n\
                     vn 0 0 0\nvn 0 3 4\nf 1/2/2 2/2/2 3/2/2\nf 1/1/2 4/2/2 5/2/2\n\
                     f 1/2/1 4/2/2 5/2/2\nf 1 4 5\n";
         let c = convert(text);
-        let prims = assert_faithful(&obj(text), &c);
-        let shape: Vec<(bool, bool)> = prims[0]
-            .iter()
-            .map(|p| (p.uvs.is_some(), p.normals.is_some()))
-            .collect();
-        assert_eq!(shape, [(true, true), (false, true)]);
-        // The file's normal (scaled to unit length), then the generated one of the triangle
-        // whose `vn` has zero length: +Z, as that triangle has no area either.
-        assert_eq!(
-            prims[0][0].normals.as_deref().unwrap(),
-            [
-                [0.0, 0.6, 0.8],
-                [0.0, 0.6, 0.8],
-                [0.0, 0.6, 0.8],
-                [0.0, 0.0, 1.0],
-                [0.0, 0.0, 1.0],
-                [0.0, 0.0, 1.0]
-            ]
-        );
-        assert!(prims[0][0].positions[1][1].is_nan());
-        assert_eq!(prims[0][0].positions[2][2], f32::INFINITY);
         let doc = read(&c);
-        let bounds = doc
-            .meshes()
-            .next()
-            .unwrap()
+        let mesh = doc.meshes().next().unwrap();
+        let counts: Vec<(bool, usize)> = mesh
             .primitives()
-            .next()
-            .unwrap()
-            .bounding_box();
-        assert_eq!((bounds.min, bounds.max), ([0.0; 3], [1.0, 1.0, 1.0]));
+            .map(|p| {
+                let uv = p.get(&gltf::Semantic::TexCoords(0)).is_some();
+                (uv, p.indices().map_or(0, |i| i.count()) / 3)
+            })
+            .collect();
+        // Triangles 2 and 4 share the primitive without UVs (first used by 2); 3 keeps its UVs.
+        assert_eq!(counts, [(false, 2), (true, 1)]);
+        for p in mesh.primitives() {
+            let b = p.bounding_box();
+            assert_eq!((b.min, b.max), ([0.0; 3], [1.0; 3]));
+        }
         assert_eq!(
             c.messages(),
             [
+                "1 triangles have a NaN or infinite position and were dropped: they cannot be \
+                 drawn, and glTF does not allow non-finite values",
                 "1 triangles use a normal of zero length or not finite, which glTF does not \
                  allow; they were given generated normals, as faces without vn are",
                 "1 triangles use a texture coordinate that is NaN or infinite; they were written \
@@ -2974,11 +2955,9 @@ mod tests {
                 "normals generated for 2 triangles without vn: smooth, with edges sharper than \
                  60° kept hard (the OBJ has no smoothing groups); normals=flat for faceted, \
                  normals_angle to change the angle",
-                "2 vertices have a NaN or infinite position, kept as they are; POSITION min and \
-                 max cover the finite values only",
             ]
         );
-        // A primitive with no finite y at all has no bounds: refused.
+        // Nothing left to draw: refused, as an OBJ without faces is.
         let o = obj("v 0 nan 0\nv 1 inf 0\nv 0 -inf 1\nf 1 2 3\n");
         let err = obj_to_gltf(
             &o,
@@ -2988,15 +2967,8 @@ mod tests {
             &ConvertLimits::default(),
         )
         .unwrap_err();
-        assert_eq!(
-            err,
-            ConvertError::NoFinitePosition {
-                mesh: 0,
-                primitive: 0,
-                axis: 'y'
-            }
-        );
-        assert!(err.to_string().contains("every y coordinate"));
+        assert_eq!(err, ConvertError::NoFiniteTriangles { triangles: 1 });
+        assert!(err.to_string().contains("NaN or infinite position"));
     }
 
     #[test]
@@ -3279,7 +3251,7 @@ mod tests {
                     prop_assert!(c.stats.vertices >= distinct_corners(&obj));
                 }
                 Err(ConvertError::NoFaces) => prop_assert_eq!(obj.triangle_count(), 0),
-                Err(ConvertError::NoFinitePosition { .. }) => {}
+                Err(ConvertError::NoFiniteTriangles { .. }) => {}
                 Err(e) => prop_assert!(false, "{e}"),
             }
         }
