@@ -238,6 +238,10 @@ impl fmt::Display for ConvertError {
                 f,
                 "a face refers to {what} {index} (counted from 0), but there are only {count}"
             ),
+            ConvertError::NoFiniteTriangles { triangles: 1 } => write!(
+                f,
+                "the OBJ's only triangle has a NaN or infinite position: nothing can be drawn"
+            ),
             ConvertError::NoFiniteTriangles { triangles } => write!(
                 f,
                 "every one of the OBJ's {triangles} triangles has a NaN or infinite position: \
