@@ -365,4 +365,20 @@ mod tests {
         let busy = &api["paths"]["/v1/tangents"]["post"]["responses"]["503"];
         assert!(busy["headers"]["Retry-After"].is_object(), "{busy}");
     }
+
+    /// An analysis writes nothing, so it cannot be refused for its output's size.
+    #[test]
+    fn only_the_route_that_writes_lists_output_too_large() {
+        let api = document();
+        let too_large = |path: &str| {
+            api["paths"][path]["post"]["responses"]["413"]["description"]
+                .as_str()
+                .unwrap_or_default()
+                .to_owned()
+        };
+        assert!(too_large("/v1/tangents").contains("`output-too-large`"));
+        let analyze = too_large("/v1/analyze");
+        assert!(analyze.contains("`body-too-large`"), "{analyze}");
+        assert!(!analyze.contains("`output-too-large`"), "{analyze}");
+    }
 }

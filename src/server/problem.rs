@@ -175,9 +175,11 @@ pub struct ProblemCodes;
 
 impl utoipa::Modify for ProblemCodes {
     fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
-        for item in openapi.paths.paths.values_mut() {
+        for (path, item) in openapi.paths.paths.iter_mut() {
+            // Only a route that writes a scene can find its output too large.
+            let writes = path != "/v1/analyze";
             if let Some(operation) = item.post.as_mut() {
-                for (status, response) in error_responses() {
+                for (status, response) in error_responses(writes) {
                     operation
                         .responses
                         .responses
@@ -188,22 +190,24 @@ impl utoipa::Modify for ProblemCodes {
     }
 }
 
-/// The codes a scene route can answer with: all but a route or method that does not exist.
-fn scene_route_codes() -> impl Iterator<Item = ProblemCode> {
+/// The codes a scene route can answer with: all but a route or method that does not exist,
+/// and, for a route that writes nothing, an output over the limit.
+fn scene_route_codes(writes: bool) -> impl Iterator<Item = ProblemCode> {
     ProblemCode::ALL
         .iter()
         .copied()
         .filter(|c| c.class() != ErrorClass::NoSuchRoute)
+        .filter(move |c| writes || *c != ProblemCode::OutputTooLarge)
 }
 
-fn error_responses() -> Vec<(String, utoipa::openapi::Response)> {
-    let mut statuses: Vec<u16> = scene_route_codes().map(ProblemCode::status).collect();
+fn error_responses(writes: bool) -> Vec<(String, utoipa::openapi::Response)> {
+    let mut statuses: Vec<u16> = scene_route_codes(writes).map(ProblemCode::status).collect();
     statuses.sort_unstable();
     statuses.dedup();
     statuses
         .into_iter()
         .map(|status| {
-            let codes: Vec<ProblemCode> = scene_route_codes()
+            let codes: Vec<ProblemCode> = scene_route_codes(writes)
                 .filter(|c| c.status() == status)
                 .collect();
             let listed: Vec<String> = codes
