@@ -2,6 +2,7 @@
 
 use clap::{Args, ValueEnum};
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// How request logs are written.
@@ -47,6 +48,10 @@ pub struct ServeArgs {
     /// Log format.
     #[arg(long, env = "TSPACE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     pub log_format: LogFormat,
+    /// A file of API keys, one per line (# starts a comment): when given, /v1/tangents and
+    /// /v1/analyze answer only `Authorization: Bearer <key>` for one of them, else 401.
+    #[arg(long, env = "TSPACE_API_KEYS_FILE")]
+    pub api_keys_file: Option<PathBuf>,
 }
 
 /// The settings the server runs with.
@@ -64,6 +69,8 @@ pub struct ServerConfig {
     /// How long a request body may take to arrive.
     pub read_timeout: Duration,
     pub log_format: LogFormat,
+    /// Where the API keys are, when the scene routes require one (read at start).
+    pub api_keys_file: Option<PathBuf>,
 }
 
 impl ServerConfig {
@@ -79,6 +86,7 @@ impl ServerConfig {
             timeout: Duration::from_secs(60),
             read_timeout: Duration::from_secs(30),
             log_format: LogFormat::Text,
+            api_keys_file: None,
         }
     }
 }
@@ -102,6 +110,7 @@ impl From<ServeArgs> for ServerConfig {
             timeout: Duration::from_secs(args.timeout.max(1)),
             read_timeout: Duration::from_secs(args.read_timeout.max(1)),
             log_format: args.log_format,
+            api_keys_file: args.api_keys_file,
         }
     }
 }

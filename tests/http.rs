@@ -882,3 +882,101 @@ async fn the_normals_option_chooses_an_objs_generated_normals() {
     );
     running.shutdown().await.unwrap();
 }
+
+/// With a key file, the scene routes need `Authorization: Bearer <key>`; a missing or wrong
+/// key is a 401 problem with `WWW-Authenticate`, whose text never repeats the key sent; the
+/// probes, metrics and the API's description stay open.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn api_keys_guard_the_scene_routes_only() {
+    let dir = std::env::temp_dir().join(format!("tspace-keys-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("keys");
+    std::fs::write(&file, "# pipeline\nkey-for-ci\n\nkey-for-artists\n").unwrap();
+    let (running, base) = server(ServerConfig {
+        api_keys_file: Some(file.clone()),
+        ..ServerConfig::local()
+    })
+    .await;
+    let http = client();
+    let post = |key: Option<&str>| {
+        let mut request = http
+            .post(format!("{base}/v1/tangents?all=true&method=axis"))
+            .header("content-type", "model/gltf-binary")
+            .body(fixture("Box/Box.glb"));
+        if let Some(key) = key {
+            request = request.header("authorization", key.to_owned());
+        }
+        request.send()
+    };
+    for (key, says) in [
+        (None, "requires an API key"),
+        (Some("Bearer wrong-guess"), "does not carry a valid API key"),
+        (Some("Basic key-for-ci"), "does not carry a valid API key"),
+    ] {
+        let response = post(key).await.unwrap();
+        assert_eq!(
+            response.headers()["www-authenticate"],
+            "Bearer realm=\"tspace\""
+        );
+        let body = problem(response, 401, "unauthorized").await;
+        let detail = body["detail"].as_str().unwrap();
+        assert!(detail.contains(says), "{detail}");
+        assert!(
+            !detail.contains("wrong-guess") && !detail.contains("key-for"),
+            "{detail}"
+        );
+    }
+    for key in ["Bearer key-for-ci", "bearer key-for-artists"] {
+        let response = post(Some(key)).await.unwrap();
+        assert_eq!(response.status(), 200, "{key}");
+    }
+    let analyze = http
+        .post(format!("{base}/v1/analyze"))
+        .body(fixture("Box/Box.glb"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(analyze.status(), 401);
+    let metrics = http
+        .get(format!("{base}/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        metrics.contains("tspace_rejections_total{reason=\"unauthorized\"} 4"),
+        "{metrics}"
+    );
+    for open in [
+        "/healthz",
+        "/readyz",
+        "/metrics",
+        "/openapi.json",
+        "/problems/unauthorized",
+    ] {
+        let response = http.get(format!("{base}{open}")).send().await.unwrap();
+        assert_eq!(response.status(), 200, "{open}");
+    }
+    running.shutdown().await.unwrap();
+
+    // A key file without a key, or missing, stops the service from starting, naming the file.
+    std::fs::write(&file, "# nobody yet\n").unwrap();
+    for config in [
+        ServerConfig {
+            api_keys_file: Some(file.clone()),
+            ..ServerConfig::local()
+        },
+        ServerConfig {
+            api_keys_file: Some(dir.join("absent")),
+            ..ServerConfig::local()
+        },
+    ] {
+        let Err(error) = start(config).await else {
+            panic!("started without keys");
+        };
+        assert!(error.to_string().contains("the API key file"), "{error}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

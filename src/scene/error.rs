@@ -24,6 +24,8 @@ pub enum ErrorClass {
     TooLarge,
     /// The request named a route or method that does not exist.
     NoSuchRoute,
+    /// The service requires an API key, and the request did not carry a valid one.
+    Unauthorized,
     /// The request, or the work it asked for, took longer than allowed.
     OutOfTime,
     /// Every worker is busy; the same request may succeed later.
@@ -77,6 +79,7 @@ problem_codes! {
     InvalidOption => "invalid-option", Malformed, 400, "A query option is invalid";
     MissingFile => "missing-file", Malformed, 400, "The request carries no scene";
     // RFC 9457 asks an `about:blank` problem for its status's own phrase as the title.
+    Unauthorized => "unauthorized", Unauthorized, 401, "The request needs a valid API key";
     NotFound => "not-found", NoSuchRoute, 404, "Not Found";
     MethodNotAllowed => "method-not-allowed", NoSuchRoute, 405, "Method Not Allowed";
     RequestTimeout => "request-timeout", OutOfTime, 408, "The request body arrived too slowly";
@@ -206,6 +209,7 @@ mod tests {
                 ErrorClass::Unprocessable => &[422],
                 ErrorClass::TooLarge => &[413],
                 ErrorClass::NoSuchRoute => &[404, 405],
+                ErrorClass::Unauthorized => &[401],
                 ErrorClass::OutOfTime => &[408, 504],
                 ErrorClass::Busy => &[503],
                 ErrorClass::Internal => &[500],

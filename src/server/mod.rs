@@ -5,6 +5,7 @@
 //! `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
 
 mod held;
+pub mod keys;
 pub mod metrics;
 mod mixed;
 pub mod openapi;
@@ -50,11 +51,20 @@ pub struct App {
     /// it, so without this bound a burst of clients, or slow readers, could make the server hold
     /// one scene per connection.
     pub in_flight: Arc<tokio::sync::Semaphore>,
+    /// The keys the scene routes require, when the service was given a key file.
+    pub api_keys: Option<keys::ApiKeys>,
 }
 
 impl App {
+    /// Fails, naming the file, when the API key file cannot be read or holds no key: a
+    /// service meant to require keys must not start without them.
     pub fn new(config: ServerConfig) -> std::io::Result<Self> {
+        let api_keys = match &config.api_keys_file {
+            Some(path) => Some(keys::ApiKeys::read(path).map_err(std::io::Error::other)?),
+            None => None,
+        };
         Ok(App {
+            api_keys,
             pool: WorkerPool::new(config.concurrency, config.queue)?,
             in_flight: Arc::new(tokio::sync::Semaphore::new(config.in_flight.max(1))),
             config,
@@ -77,6 +87,35 @@ impl MakeRequestId for Counter {
             .ok()
             .map(RequestId::new)
     }
+}
+
+/// The scene routes' guard when the service has API keys: a request without `Authorization:
+/// Bearer <key>` for one of them is answered 401 before its body is read. The problem says
+/// what is needed, never which key was sent.
+async fn require_api_key(
+    State(app): State<Arc<App>>,
+    request: Request,
+    next: Next,
+) -> axum::response::Response {
+    let Some(keys) = &app.api_keys else {
+        return next.run(request).await;
+    };
+    let authorization = request.headers().get(header::AUTHORIZATION);
+    if keys.allows(authorization.map(HeaderValue::as_bytes)) {
+        return next.run(request).await;
+    }
+    app.metrics.reject("unauthorized");
+    let detail = if authorization.is_some() {
+        "the Authorization header does not carry a valid API key; send Authorization: Bearer <key>"
+    } else {
+        "this service requires an API key; send Authorization: Bearer <key>"
+    };
+    let mut response = Problem::new(ProblemCode::Unauthorized, detail).into_response();
+    response.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        HeaderValue::from_static("Bearer realm=\"tspace\""),
+    );
+    response
 }
 
 async fn record_metrics(
@@ -112,9 +151,15 @@ fn panic_response(payload: Box<dyn std::any::Any + Send + 'static>) -> Response<
 /// The whole router, for a given state.
 pub fn router(app: Arc<App>) -> Router {
     let body_limit = app.config.body_limit;
-    let api = Router::new()
+    let scenes = Router::new()
         .route("/v1/tangents", axum::routing::post(routes::tangents))
         .route("/v1/analyze", axum::routing::post(routes::analyze))
+        .route_layer(middleware::from_fn_with_state(
+            Arc::clone(&app),
+            require_api_key,
+        ));
+    let api = Router::new()
+        .merge(scenes)
         .route("/healthz", axum::routing::get(routes::healthz))
         .route("/readyz", axum::routing::get(routes::readyz))
         .route("/metrics", axum::routing::get(routes::metrics))

@@ -42,7 +42,7 @@ use utoipa::{IntoParams, Modify, OpenApi, PartialSchema, ToSchema};
         (name = "scenes", description = "Tangents for a scene, or a report of what they would be"),
         (name = "service", description = "Health, readiness, metrics and the problem pages"),
     ),
-    modifiers(&OptionSchemas, &ProblemCodes, &RequestIds)
+    modifiers(&OptionSchemas, &ProblemCodes, &RequestIds, &ApiKeyScheme)
 )]
 pub struct ApiDoc;
 
@@ -270,6 +270,43 @@ impl Modify for RequestIds {
     }
 }
 
+/// The scene routes take `Authorization: Bearer <key>`, required only when the service was
+/// given a key file (`--api-keys-file`): described as an optional bearer scheme (an empty
+/// requirement or the key), so that generated clients can send a key and need not.
+struct ApiKeyScheme;
+
+impl Modify for ApiKeyScheme {
+    fn modify(&self, openapi: &mut Document) {
+        use utoipa::openapi::security::{
+            HttpAuthScheme, HttpBuilder, SecurityRequirement, SecurityScheme,
+        };
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "api_key",
+            SecurityScheme::Http(
+                HttpBuilder::new()
+                    .scheme(HttpAuthScheme::Bearer)
+                    .description(Some(
+                        "An API key from the service's --api-keys-file, when it has one; 401 \
+                         unauthorized without it",
+                    ))
+                    .build(),
+            ),
+        );
+        for (path, item) in openapi.paths.paths.iter_mut() {
+            if !path.starts_with("/v1/") {
+                continue;
+            }
+            if let Some(operation) = item.post.as_mut() {
+                operation.security = Some(vec![
+                    SecurityRequirement::default(),
+                    SecurityRequirement::new("api_key", Vec::<String>::new()),
+                ]);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -364,6 +401,26 @@ mod tests {
         }
         let busy = &api["paths"]["/v1/tangents"]["post"]["responses"]["503"];
         assert!(busy["headers"]["Retry-After"].is_object(), "{busy}");
+    }
+
+    /// The scene routes say they take a bearer key, and that it may be left out.
+    #[test]
+    fn the_scene_routes_take_an_optional_bearer_key() {
+        let api = document();
+        assert_eq!(
+            api["components"]["securitySchemes"]["api_key"]["scheme"],
+            "bearer"
+        );
+        for path in ["/v1/tangents", "/v1/analyze"] {
+            let security = &api["paths"][path]["post"]["security"];
+            assert_eq!(
+                security,
+                &serde_json::json!([{}, {"api_key": []}]),
+                "{path}"
+            );
+        }
+        let probe = &api["paths"]["/healthz"]["get"];
+        assert!(probe.is_object() && probe["security"].is_null(), "{probe}");
     }
 
     /// An analysis writes nothing, so it cannot be refused for its output's size.
