@@ -337,14 +337,7 @@ async fn a_full_queue_sheds_load_and_recovers() {
         .unwrap();
     assert_eq!(response.status(), 200);
 
-    let metrics = http
-        .get(format!("{base}/metrics"))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let metrics = metrics_text(&base).await;
     assert!(
         metrics.contains("tspace_rejections_total{reason=\"overloaded\"}"),
         "{metrics}"
@@ -579,16 +572,21 @@ async fn health_readiness_and_documentation() {
     running.shutdown().await.unwrap();
 }
 
-/// The jobs gauges, read from /metrics.
-async fn gauges(base: &str) -> (u64, u64) {
-    let text = client()
+/// The exposition text of /metrics.
+async fn metrics_text(base: &str) -> String {
+    client()
         .get(format!("{base}/metrics"))
         .send()
         .await
         .unwrap()
         .text()
         .await
-        .unwrap();
+        .unwrap()
+}
+
+/// The jobs gauges, read from /metrics.
+async fn gauges(base: &str) -> (u64, u64) {
+    let text = metrics_text(base).await;
     let value = |name: &str| -> u64 {
         text.lines()
             .find_map(|l| l.strip_prefix(name))
@@ -937,14 +935,7 @@ async fn api_keys_guard_the_scene_routes_only() {
         .await
         .unwrap();
     assert_eq!(analyze.status(), 401);
-    let metrics = http
-        .get(format!("{base}/metrics"))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let metrics = metrics_text(&base).await;
     assert!(
         metrics.contains("tspace_rejections_total{reason=\"unauthorized\"} 4"),
         "{metrics}"

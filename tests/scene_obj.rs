@@ -14,6 +14,11 @@ fn assert_valid(name: &str, bytes: &[u8]) {
     }
 }
 
+/// An OBJ alone (no MTL or textures), processed with `options`.
+fn process_obj(obj: &[u8], options: &SceneOptions) -> tspace::scene::Processed {
+    process(InputKind::Obj, obj, &PartSet::new(), options).unwrap()
+}
+
 #[test]
 fn an_obj_without_mtl_gets_tangents_everywhere() {
     let obj = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n";
@@ -78,13 +83,7 @@ fn spider_with_its_mtl_follows_the_materials() {
     );
     assert_valid("spider-all.glb", &done.bytes.unwrap());
     // Without the MTL the file still converts, and says what is missing.
-    let done = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &SceneOptions::default(),
-    )
-    .unwrap();
+    let done = process_obj(&obj, &SceneOptions::default());
     assert!(
         done.report
             .warnings
@@ -98,13 +97,7 @@ fn spider_with_its_mtl_follows_the_materials() {
 #[test]
 fn ngons_and_negative_indices_come_through() {
     let obj = fixture("negative_indices/negative_indices.obj");
-    let done = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &SceneOptions::default(),
-    )
-    .unwrap();
+    let done = process_obj(&obj, &SceneOptions::default());
     assert_eq!(done.report.summary.generated, 1);
     assert_eq!(done.report.summary.triangles, 12);
     assert_valid("cube.glb", &done.bytes.unwrap());
@@ -265,13 +258,7 @@ fn spot_without_vn_is_smooth_by_default_and_faceted_on_request() {
         return;
     };
     let obj = std::fs::read(dir.join("obj_spot/spot_triangulated.obj")).unwrap();
-    let smooth = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &SceneOptions::default(),
-    )
-    .unwrap();
+    let smooth = process_obj(&obj, &SceneOptions::default());
     assert_eq!(
         smooth.report.warnings,
         [
@@ -286,13 +273,7 @@ fn spot_without_vn_is_smooth_by_default_and_faceted_on_request() {
     assert!((3225..3400).contains(&vertices), "{vertices}");
     assert_valid("spot.glb", &smooth_bytes);
 
-    let flat = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &with_normals("flat", None),
-    )
-    .unwrap();
+    let flat = process_obj(&obj, &with_normals("flat", None));
     assert!(flat.report.warnings[0].ends_with("flat (faceted), as normals=flat asks"));
     let flat_bytes = flat.bytes.unwrap();
     assert_eq!(written_vertices(&flat_bytes), 17568);
@@ -304,13 +285,7 @@ fn spot_without_vn_is_smooth_by_default_and_faceted_on_request() {
 #[test]
 fn smoothing_groups_are_honoured() {
     let obj = fixture("smoothing_groups/smoothing_groups.obj");
-    let done = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &SceneOptions::default(),
-    )
-    .unwrap();
+    let done = process_obj(&obj, &SceneOptions::default());
     assert_eq!(
         done.report.warnings,
         [
@@ -347,13 +322,7 @@ fn smoothing_groups_are_honoured() {
 
     // normals=smooth with the default 60° crease: the cubes' 90° edges stay hard, the prism's
     // 45° ones are smoothed, borders included.
-    let smooth = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &with_normals("smooth", None),
-    )
-    .unwrap();
+    let smooth = process_obj(&obj, &with_normals("smooth", None));
     let meshes = normals_by_position(&smooth.bytes.unwrap());
     assert_eq!(
         meshes["smooth_cube"].iter().map(|(_, n)| n.len()).max(),
@@ -361,13 +330,7 @@ fn smoothing_groups_are_honoured() {
     );
     assert!(meshes["two_groups"].iter().all(|(_, n)| n.len() == 1));
     // normals=flat: the prism is faceted too.
-    let flat = process(
-        InputKind::Obj,
-        &obj,
-        &PartSet::new(),
-        &with_normals("flat", None),
-    )
-    .unwrap();
+    let flat = process_obj(&obj, &with_normals("flat", None));
     let meshes = normals_by_position(&flat.bytes.unwrap());
     assert!(meshes["two_groups"].iter().all(|(_, n)| n.len() == 2));
 }

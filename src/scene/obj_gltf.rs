@@ -2135,6 +2135,17 @@ mod tests {
         convert_with(obj_text, None, &[])
     }
 
+    /// A parsed OBJ with the default options and no MTL or textures.
+    fn convert_obj(obj: &Obj) -> Result<Converted, ConvertError> {
+        obj_to_gltf(
+            obj,
+            None,
+            &PartSet::new(),
+            NormalRequest::default(),
+            &ConvertLimits::default(),
+        )
+    }
+
     /// The converted document read back by the `gltf` crate, from a GLB made of it.
     fn read(c: &Converted) -> gltf::Gltf {
         let glb = glb::write(c.json.as_bytes(), Some(&c.bin), &[]).unwrap();
@@ -2909,14 +2920,7 @@ mod tests {
                 triangles,
                 ..FaceGroup::default()
             });
-            let c = obj_to_gltf(
-                &obj,
-                None,
-                &PartSet::new(),
-                NormalRequest::default(),
-                &ConvertLimits::default(),
-            )
-            .unwrap();
+            let c = convert_obj(&obj).unwrap();
             let prims = assert_faithful(&obj, &c);
             assert_eq!(prims[0][0].positions.len(), vertices);
             assert_eq!(
@@ -2965,14 +2969,7 @@ mod tests {
         );
         // Nothing left to draw: refused, as an OBJ without faces is.
         let o = obj("v 0 nan 0\nv 1 inf 0\nv 0 -inf 1\nf 1 2 3\n");
-        let err = obj_to_gltf(
-            &o,
-            None,
-            &PartSet::new(),
-            NormalRequest::default(),
-            &ConvertLimits::default(),
-        )
-        .unwrap_err();
+        let err = convert_obj(&o).unwrap_err();
         assert_eq!(err, ConvertError::NoFiniteTriangles { triangles: 1 });
         assert!(err.to_string().contains("NaN or infinite position"));
     }
@@ -3214,14 +3211,7 @@ mod tests {
         }
         if let Some(bytes) = fixture("negative_indices/negative_indices.obj") {
             let obj = parse_obj(&bytes, &Limits::default()).unwrap();
-            let c = obj_to_gltf(
-                &obj,
-                None,
-                &PartSet::new(),
-                NormalRequest::default(),
-                &ConvertLimits::default(),
-            )
-            .unwrap();
+            let c = convert_obj(&obj).unwrap();
             let prims = assert_faithful(&obj, &c);
             assert_eq!(c.stats.vertices, distinct_corners(&obj));
             assert_eq!(prims[0].len(), 1);

@@ -421,79 +421,78 @@ pub fn notice_severity(code: &str) -> Severity {
         .map_or(Severity::Warning, |(_, s)| *s)
 }
 
-/// The findings a primitive's counts make: code (the report's field name), severity, and what
-/// a non-zero count means.
-const DIAGNOSTIC_FINDINGS: &[(&str, Severity, &str)] = &[
+/// A finding a primitive's count makes: its code (the report's field name), severity, what a
+/// non-zero count means, and the count.
+type DiagnosticFinding = (
+    &'static str,
+    Severity,
+    &'static str,
+    fn(&DiagnosticsReport) -> u64,
+);
+
+/// The findings a primitive's diagnostics make.
+const DIAGNOSTIC_FINDINGS: &[DiagnosticFinding] = &[
     (
         "non_finite_triangles",
         Severity::Error,
         "triangles with a NaN or infinite position, normal or UV: their tangents are a fallback",
+        |d| d.non_finite_triangles.count,
     ),
     (
         "zero_normals",
         Severity::Error,
         "vertices whose normal has zero length: glTF requires unit normals; shading there is undefined",
+        |d| d.zero_normals.count,
     ),
     (
         "non_unit_normals",
         Severity::Error,
         "vertices whose normal is not unit length: glTF requires unit normals (tangents use them normalized)",
+        |d| d.non_unit_normals.count,
     ),
     (
         "zero_area_triangles",
         Severity::Warning,
         "triangles with no area (collinear corners): invisible, but their corners get fallback tangents",
+        |d| d.zero_area_triangles.count,
     ),
     (
         "duplicate_position_triangles",
         Severity::Warning,
         "triangles with two corners at one position: invisible, but their corners get fallback tangents",
+        |d| d.duplicate_position_triangles.count,
     ),
     (
         "zero_uv_area_triangles",
         Severity::Warning,
         "triangles whose UVs have no area: a normal map cannot be oriented on them; check the UV layout",
+        |d| d.zero_uv_area_triangles.count,
     ),
     (
         "fallback_tangents",
         Severity::Warning,
         "corners MikkTSpace gave no valid tangent (the reference would write a broken one); tspace made a valid one orthogonal to the normal",
+        |d| d.fallback_tangents.count,
     ),
     (
         "mixed_handedness_triangles",
         Severity::Warning,
         "triangles whose corners disagree on w (handedness): the normal map shows a seam across them",
+        |d| d.mixed_handedness_triangles.count,
     ),
     (
         "mirrored_uv_triangles",
         Severity::Info,
         "triangles with mirrored UVs (w = -1): normal for a mirrored layout",
+        |d| d.mirrored_uv_triangles.count,
     ),
     (
         "handedness_flip_vertices",
         Severity::Info,
         "vertices split because mirrored and unmirrored triangles share them",
+        |d| d.handedness_flip_vertices.count,
     ),
 ];
-
-impl DiagnosticsReport {
-    /// Each count of [`DIAGNOSTIC_FINDINGS`] in turn.
-    fn count(&self, code: &str) -> u64 {
-        match code {
-            "non_finite_triangles" => self.non_finite_triangles.count,
-            "zero_normals" => self.zero_normals.count,
-            "non_unit_normals" => self.non_unit_normals.count,
-            "zero_area_triangles" => self.zero_area_triangles.count,
-            "duplicate_position_triangles" => self.duplicate_position_triangles.count,
-            "zero_uv_area_triangles" => self.zero_uv_area_triangles.count,
-            "fallback_tangents" => self.fallback_tangents.count,
-            "mixed_handedness_triangles" => self.mixed_handedness_triangles.count,
-            "mirrored_uv_triangles" => self.mirrored_uv_triangles.count,
-            "handedness_flip_vertices" => self.handedness_flip_vertices.count,
-            _ => 0,
-        }
-    }
-}
 
 /// What an audit's counts mean for the tangents the file keeps.
 fn audit_findings(audit: &Audit) -> Vec<(&'static str, Severity, u64, String)> {
@@ -540,8 +539,8 @@ impl Report {
         for p in &self.primitives {
             let at = Some([p.mesh, p.primitive]);
             if let Some(d) = &p.diagnostics {
-                for &(code, severity, meaning) in DIAGNOSTIC_FINDINGS {
-                    let count = d.count(code);
+                for &(code, severity, meaning, count_of) in DIAGNOSTIC_FINDINGS {
+                    let count = count_of(d);
                     if count > 0 {
                         findings.push(Finding {
                             code,
@@ -659,19 +658,28 @@ mod tests {
 
     #[test]
     fn every_diagnostic_finding_reads_its_own_count() {
-        for &(code, _, meaning) in DIAGNOSTIC_FINDINGS {
-            let json = serde_json::to_value(DiagnosticsReport::default()).unwrap();
-            assert!(
-                json.get(code).is_some(),
-                "{code} is not a diagnostics field"
-            );
+        // Every count different, so that a finding reading another field's shows.
+        let d = DiagnosticsReport {
+            duplicate_position_triangles: tally(1),
+            zero_area_triangles: tally(2),
+            zero_uv_area_triangles: tally(3),
+            mirrored_uv_triangles: tally(4),
+            non_finite_triangles: tally(5),
+            zero_normals: tally(6),
+            non_unit_normals: tally(7),
+            handedness_flip_vertices: tally(8),
+            mixed_handedness_triangles: tally(9),
+            fallback_tangents: FallbackReport {
+                count: 10,
+                ..FallbackReport::default()
+            },
+            ..DiagnosticsReport::default()
+        };
+        let json = serde_json::to_value(&d).unwrap();
+        for &(code, _, meaning, count_of) in DIAGNOSTIC_FINDINGS {
+            assert_eq!(json[code]["count"], count_of(&d), "{code}");
             assert!(!meaning.is_empty());
         }
-        let mut d = DiagnosticsReport::default();
-        d.fallback_tangents.count = 4;
-        d.handedness_flip_vertices.count = 5;
-        assert_eq!(d.count("fallback_tangents"), 4);
-        assert_eq!(d.count("handedness_flip_vertices"), 5);
     }
 
     #[test]
@@ -712,7 +720,7 @@ mod tests {
                 "{code} not in docs/report.md"
             );
         }
-        for &(code, _, _) in DIAGNOSTIC_FINDINGS {
+        for &(code, _, _, _) in DIAGNOSTIC_FINDINGS {
             assert!(
                 docs.contains(&format!("`{code}`")),
                 "{code} not in docs/report.md"
