@@ -1,10 +1,11 @@
 //! Every `curl` example in `README.md` and `docs/*.md` must work against the real binary.
 //!
 //! The test starts `tspace serve` on a free loopback port, takes every ```sh fenced block of
-//! those files, joins backslash continuations, and runs each line that starts with `curl` with
-//! `sh -c`, `http://localhost:8080` replaced by the server's address. Each must exit 0, and every
-//! HTTP answer it got must be neither a server error (5xx) nor a route that does not exist (404,
-//! 405): the error examples in the docs are meant to get 4xx answers, but never those.
+//! those files, joins backslash continuations, and runs each line that starts with `curl` (or
+//! pipes into it) with `sh -c`, `http://localhost:8080` replaced by the server's address. Each
+//! must exit 0, and every HTTP answer it got must be neither a server error (5xx) nor a route
+//! that does not exist (404, 405): the error examples in the docs are meant to get 4xx answers,
+//! but never those.
 //!
 //! The examples name fixtures by paths relative to the repository's root (`fixtures/…`) and write
 //! their outputs to relative file names (`-o Box.tspace.glb`). So that running them leaves the
@@ -165,7 +166,7 @@ fn curl_lines(block: &str) -> Vec<String> {
                 pending.push_str(line);
                 let command = std::mem::take(&mut pending);
                 let command = command.trim();
-                if command == "curl" || command.starts_with("curl ") {
+                if runs_curl(command) {
                     lines.push(command.to_owned());
                 }
             }
@@ -173,11 +174,17 @@ fn curl_lines(block: &str) -> Vec<String> {
     }
     if !pending.trim().is_empty() {
         let command = pending.trim();
-        if command.starts_with("curl ") {
+        if runs_curl(command) {
             lines.push(command.to_owned());
         }
     }
     lines
+}
+
+/// A line that is a curl command, or pipes into one (`gzip -c … | curl … --data-binary @-`).
+fn runs_curl(command: &str) -> bool {
+    let last = command.rsplit(" | ").next().unwrap_or(command).trim_start();
+    last == "curl" || last.starts_with("curl ")
 }
 
 fn copy_dir(from: &Path, to: &Path) {

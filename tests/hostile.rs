@@ -480,3 +480,82 @@ fn peak_memory_stays_bounded_by_the_body_size() {
         "a JSON-heavy scene's peak grew {json_ratio:.0} times its size"
     );
 }
+
+/// 1 GiB of zeros, gzipped: 16 gzip members of 64 MiB each at the best level, about 1 MB in
+/// all (a gzip file may hold several members, and `gzip -d` reads them all; compressing 64 MiB
+/// once is 16 times faster than compressing the gigabyte).
+fn gzip_bomb() -> Vec<u8> {
+    use std::io::Write;
+    let mut member = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    member.write_all(&vec![0u8; 64 << 20]).unwrap();
+    let member = member.finish().unwrap();
+    member.repeat(16)
+}
+
+/// 1 GiB of zeros in one zstd frame (a few tens of kilobytes).
+fn zstd_bomb() -> Vec<u8> {
+    use std::io::Write;
+    let mut encoder = zstd::Encoder::new(Vec::new(), 3).unwrap();
+    let zeros = vec![0u8; 1 << 20];
+    for _ in 0..1024 {
+        encoder.write_all(&zeros).unwrap();
+    }
+    encoder.finish().unwrap()
+}
+
+/// A compressed body is decoded as it streams in, and the limit counts decoded bytes: a gigabyte
+/// of zeros in a megabyte is refused at the limit, and the server holds at most the limit while
+/// it finds out, never the gigabyte.
+#[cfg(target_os = "linux")]
+#[test]
+fn compression_bombs_are_refused_at_the_limit_without_inflating() {
+    use tspace_testkit::process::{ServerProcess, status_line};
+    const LIMIT: usize = 64 << 20;
+    let server = ServerProcess::start(
+        env!("CARGO_BIN_EXE_tspace"),
+        &["--body-limit", &LIMIT.to_string()],
+    );
+    let post = |body: &[u8], coding: &str| -> Vec<u8> {
+        server.post_with(
+            "/v1/tangents",
+            body,
+            &[
+                ("Content-Type", "model/gltf-binary"),
+                ("Content-Encoding", coding),
+            ],
+        )
+    };
+    // A real compressed upload first, so that the baseline has the decoder and a scene's worth
+    // of allocator arenas in it.
+    let scene = grid(64);
+    let mut gzipped = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    std::io::Write::write_all(&mut gzipped, &scene).unwrap();
+    let answer = post(&gzipped.finish().unwrap(), "gzip");
+    assert!(
+        status_line(&answer).starts_with("HTTP/1.1 200"),
+        "{}",
+        status_line(&answer)
+    );
+    let before = server.memory("VmHWM");
+    for (coding, bomb) in [("gzip", gzip_bomb()), ("zstd", zstd_bomb())] {
+        let answer = post(&bomb, coding);
+        let text = String::from_utf8_lossy(&answer);
+        assert!(
+            status_line(&answer).starts_with("HTTP/1.1 413") && text.contains("body-too-large"),
+            "{coding}: {}",
+            status_line(&answer)
+        );
+        let grown = server.memory("VmHWM").saturating_sub(before);
+        eprintln!(
+            "{coding} bomb: {} KiB on the wire for 1 GiB decoded: 413; the server's peak RSS grew {} MiB (body limit {} MiB)",
+            bomb.len() >> 10,
+            grown >> 20,
+            LIMIT >> 20
+        );
+        assert!(
+            grown < 100 << 20,
+            "{coding}: a compression bomb grew the server's peak by {} MiB",
+            grown >> 20
+        );
+    }
+}

@@ -971,3 +971,147 @@ async fn api_keys_guard_the_scene_routes_only() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+fn gzip(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    encoder.write_all(bytes).unwrap();
+    encoder.finish().unwrap()
+}
+
+fn gunzip(bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    std::io::Read::read_to_end(&mut flate2::read::MultiGzDecoder::new(bytes), &mut out).unwrap();
+    out
+}
+
+/// A body sent gzip- or zstd-encoded is read as the scene it encodes (whole bodies and multipart
+/// alike); an encoding tspace does not decode is a 415 naming the ones it does; a stream that
+/// does not decode is a 400.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn compressed_request_bodies_are_decoded() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let scene = grid(24);
+    let plain = post_tangents(&base, scene.clone()).await;
+    assert_eq!(plain.status(), 200);
+    let expected = plain.bytes().await.unwrap();
+    let send = |coding: &'static str, body: Vec<u8>| {
+        client()
+            .post(format!("{base}/v1/tangents"))
+            .header("content-type", "model/gltf-binary")
+            .header("content-encoding", coding)
+            .body(body)
+            .send()
+    };
+
+    for (coding, body) in [
+        ("gzip", gzip(&scene)),
+        ("x-gzip", gzip(&scene)),
+        ("zstd", zstd::encode_all(&scene[..], 3).unwrap()),
+        // Two gzip members, as `cat a.gz b.gz` makes.
+        ("gzip", [gzip(&scene[..100]), gzip(&scene[100..])].concat()),
+    ] {
+        let response = send(coding, body).await.unwrap();
+        assert_eq!(response.status(), 200, "{coding}");
+        assert_eq!(response.bytes().await.unwrap(), expected, "{coding}");
+    }
+
+    let gltf = fixture("Avocado/Avocado.gltf");
+    let bin = fixture("Avocado/Avocado.bin");
+    let boundary = "tspace-test-boundary";
+    let mut multipart_bytes = Vec::new();
+    for (name, file_name, bytes) in [("file", "Avocado.gltf", gltf), ("bin", "Avocado.bin", bin)] {
+        multipart_bytes.extend_from_slice(
+            format!(
+                "--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"; filename=\"{file_name}\"\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        multipart_bytes.extend_from_slice(&bytes);
+        multipart_bytes.extend_from_slice(b"\r\n");
+    }
+    multipart_bytes.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    let response = client()
+        .post(format!("{base}/v1/analyze"))
+        .header(
+            "content-type",
+            format!("multipart/form-data; boundary={boundary}"),
+        )
+        .header("content-encoding", "zstd")
+        .body(zstd::encode_all(&multipart_bytes[..], 3).unwrap())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let report: Value = response.json().await.unwrap();
+    assert_eq!(report["summary"]["primitives"], json!(1), "{report}");
+
+    let refused = send("br", gzip(&scene)).await.unwrap();
+    assert_eq!(refused.headers()["accept-encoding"], "gzip, zstd");
+    let body = problem(refused, 415, "unsupported-encoding").await;
+    assert!(body["detail"].as_str().unwrap().contains("br"), "{body}");
+    problem(
+        send("gzip, zstd", gzip(&scene)).await.unwrap(),
+        415,
+        "unsupported-encoding",
+    )
+    .await;
+
+    let compressed = gzip(&scene);
+    for (what, body) in [
+        ("not gzip", scene.clone()),
+        ("cut short", compressed[..compressed.len() / 2].to_vec()),
+    ] {
+        let response = send("gzip", body).await.unwrap();
+        let body = problem(response, 400, "malformed-encoding").await;
+        assert!(
+            body["detail"].as_str().unwrap().contains("gzip"),
+            "{what}: {body}"
+        );
+    }
+    running.shutdown().await.unwrap();
+}
+
+/// Answers are compressed when the client asks for gzip or zstd, and decode to the very bytes
+/// an uncompressed answer carries; the report header stays readable.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn answers_are_compressed_when_asked() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let scene = grid(24);
+    let ask = |accept: &'static str| {
+        client()
+            .post(format!("{base}/v1/tangents"))
+            .header("accept-encoding", accept)
+            .body(scene.clone())
+            .send()
+    };
+    let plain = ask("identity").await.unwrap();
+    assert!(plain.headers().get("content-encoding").is_none());
+    let expected = plain.bytes().await.unwrap();
+
+    let gzipped = ask("gzip").await.unwrap();
+    assert_eq!(gzipped.headers()["content-encoding"], "gzip");
+    assert!(gzipped.headers().contains_key("x-tspace-report"));
+    let body = gzipped.bytes().await.unwrap();
+    assert!(body.len() < expected.len());
+    assert_eq!(gunzip(&body), expected);
+
+    let zstded = ask("zstd, gzip;q=0.5").await.unwrap();
+    assert_eq!(zstded.headers()["content-encoding"], "zstd");
+    let body = zstded.bytes().await.unwrap();
+    assert_eq!(zstd::decode_all(&body[..]).unwrap(), expected);
+
+    // Problems too, as curl --compressed would receive them.
+    let problem_answer = client()
+        .post(format!("{base}/v1/tangents"))
+        .header("accept-encoding", "gzip")
+        .body(b"not a scene".to_vec())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(problem_answer.status(), 415);
+    let body = problem_answer.bytes().await.unwrap();
+    let problem: Value = serde_json::from_slice(&gunzip(&body)).unwrap();
+    assert_eq!(problem["code"], json!("unsupported-media-type"));
+    running.shutdown().await.unwrap();
+}

@@ -72,6 +72,7 @@ problem_codes! {
     DracoCountMismatch => "draco-count-mismatch", Malformed, 400, "A Draco stream's counts disagree with its accessors";
     DracoTypeMismatch => "draco-type-mismatch", Malformed, 400, "A Draco stream's values do not fit their accessor's type";
     MalformedMultipart => "malformed-multipart", Malformed, 400, "The multipart body is malformed";
+    MalformedEncoding => "malformed-encoding", Malformed, 400, "The body's gzip or zstd stream does not decode";
     InvalidAccessor => "invalid-accessor", Malformed, 400, "An accessor is invalid";
     InvalidPrimitive => "invalid-primitive", Malformed, 400, "A primitive is invalid";
     InvalidBufferView => "invalid-buffer-view", Malformed, 400, "A buffer view is invalid";
@@ -91,6 +92,7 @@ problem_codes! {
     TooLarge => "too-large", TooLarge, 413, "The scene is over a limit";
     OutputTooLarge => "output-too-large", TooLarge, 413, "The output would be over the format's size limit";
     UnsupportedMediaType => "unsupported-media-type", Unsupported, 415, "The body's media type is not a scene tspace reads";
+    UnsupportedEncoding => "unsupported-encoding", Unsupported, 415, "The body's content encoding is not one tspace decodes";
     MissingResource => "missing-resource", Unprocessable, 422, "A file the scene refers to was not supplied";
     RefusedUri => "refused-uri", Unprocessable, 422, "A URI in the scene is refused";
     UnsupportedVersion => "unsupported-version", Unprocessable, 422, "The glTF version is not supported";

@@ -4,6 +4,7 @@
 //! Routes: `POST /v1/tangents`, `POST /v1/analyze`, `GET /healthz`, `GET /readyz`,
 //! `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
 
+pub mod encoding;
 mod held;
 pub mod keys;
 pub mod metrics;
@@ -176,6 +177,7 @@ pub fn router(app: Arc<App>) -> Router {
         ))
         .with_state(app);
     api.layer(DefaultBodyLimit::max(body_limit))
+        .layer(encoding::compression())
         .layer(CatchPanicLayer::custom(panic_response))
         .layer(PropagateRequestIdLayer::new(REQUEST_ID))
         .layer(

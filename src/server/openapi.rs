@@ -317,13 +317,14 @@ mod tests {
     }
 
     #[test]
-    fn the_query_parameters_are_the_option_table() {
+    fn the_parameters_are_the_option_table_and_the_content_encoding() {
         let api = document();
         for (route, output_too) in [("/v1/tangents", true), ("/v1/analyze", false)] {
             let names: Vec<&str> = api["paths"][route]["post"]["parameters"]
                 .as_array()
                 .unwrap()
                 .iter()
+                .filter(|p| p["in"] == "query")
                 .map(|p| p["name"].as_str().unwrap())
                 .collect();
             let expected: Vec<&str> = QUERY_OPTIONS
@@ -332,6 +333,17 @@ mod tests {
                 .map(|o| o.key)
                 .collect();
             assert_eq!(names, expected, "{route}");
+        }
+        for route in ["/v1/tangents", "/v1/analyze"] {
+            let headers: Vec<&Value> = api["paths"][route]["post"]["parameters"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter(|p| p["in"] == "header")
+                .collect();
+            assert_eq!(headers.len(), 1, "{route}");
+            assert_eq!(headers[0]["name"], json!("Content-Encoding"), "{route}");
+            assert_eq!(headers[0]["required"], json!(false), "{route}");
         }
         let method = &api["components"]["schemas"]["Method"];
         assert_eq!(method["enum"], json!(["mikktspace", "fast", "axis"]));

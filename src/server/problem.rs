@@ -131,6 +131,13 @@ impl IntoResponse for Problem {
         if let Some(seconds) = self.retry_after {
             headers.insert(header::RETRY_AFTER, HeaderValue::from(seconds));
         }
+        // RFC 9110 (15.5.16): a 415 for a content coding names the codings that would do.
+        if self.code == ProblemCode::UnsupportedEncoding {
+            headers.insert(
+                header::ACCEPT_ENCODING,
+                HeaderValue::from_static(crate::server::encoding::ACCEPTED),
+            );
+        }
         response
     }
 }

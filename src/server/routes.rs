@@ -1,6 +1,7 @@
 //! The handlers: read the request (raw body or multipart), hand the scene to the worker pool,
 //! and turn its answer into a response.
 
+use super::encoding::{self, BodyFailure};
 use super::held::HeldBody;
 use super::mixed;
 use super::openapi::{
@@ -14,6 +15,7 @@ use crate::scene::report::Report;
 use crate::scene::uri::{PartSet, percent_decode};
 use crate::scene::{OutputFormat, Processed, SceneLimits, SceneOptions};
 use axum::body::{Body, Bytes};
+use axum::extract::multipart::MultipartError;
 use axum::extract::{FromRequest, Multipart, RawQuery, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -125,8 +127,27 @@ fn too_large(limit: usize) -> Problem {
     )
 }
 
+/// The problem for a body that could not be read whole: over the limit, or (compressed) not
+/// decodable. Anything else is the connection's failure, which the client will not hear about.
+fn unreadable(error: &(dyn std::error::Error + 'static), limit: usize) -> Problem {
+    match encoding::body_failure(error) {
+        BodyFailure::Undecodable(detail) => Problem::new(ProblemCode::MalformedEncoding, detail),
+        BodyFailure::TooLarge | BodyFailure::Other => too_large(limit),
+    }
+}
+
+fn multipart_problem(error: &MultipartError, limit: usize) -> Problem {
+    match encoding::body_failure(error) {
+        BodyFailure::Undecodable(detail) => Problem::new(ProblemCode::MalformedEncoding, detail),
+        BodyFailure::TooLarge => too_large(limit),
+        BodyFailure::Other if error.status() == StatusCode::PAYLOAD_TOO_LARGE => too_large(limit),
+        BodyFailure::Other => Problem::new(ProblemCode::MalformedMultipart, error.body_text()),
+    }
+}
+
 async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
     let limit = app.config.body_limit;
+    let request = encoding::decode_request(request)?;
     let headers = request.headers().clone();
     let declared_length = headers
         .get(header::CONTENT_LENGTH)
@@ -145,24 +166,14 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
             let field = match multipart.next_field().await {
                 Ok(Some(field)) => field,
                 Ok(None) => break,
-                Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
-                    return Err(too_large(limit));
-                }
-                Err(e) => {
-                    return Err(Problem::new(ProblemCode::MalformedMultipart, e.body_text()));
-                }
+                Err(e) => return Err(multipart_problem(&e, limit)),
             };
             let field_name = field.name().unwrap_or("").to_owned();
             let file_name = field.file_name().map(str::to_owned);
             let part_type = field.content_type().map(str::to_owned);
             let bytes = match field.bytes().await {
                 Ok(bytes) => bytes,
-                Err(e) if e.status() == StatusCode::PAYLOAD_TOO_LARGE => {
-                    return Err(too_large(limit));
-                }
-                Err(e) => {
-                    return Err(Problem::new(ProblemCode::MalformedMultipart, e.body_text()));
-                }
+                Err(e) => return Err(multipart_problem(&e, limit)),
             };
             fields.push((field_name, file_name, part_type, bytes));
         }
@@ -199,7 +210,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
     }
     let body = axum::body::to_bytes(request.into_body(), limit)
         .await
-        .map_err(|_| too_large(limit))?;
+        .map_err(|e| unreadable(&e, limit))?;
     if body.is_empty() {
         return Err(Problem::new(
             ProblemCode::MissingFile,
@@ -357,7 +368,10 @@ fn wants_multipart(headers: &HeaderMap) -> bool {
     post,
     path = "/v1/tangents",
     tag = "scenes",
-    params(TangentsQuery),
+    params(
+        TangentsQuery,
+        ("Content-Encoding" = Option<String>, Header, description = "gzip (or x-gzip) or zstd for a compressed body; it is decoded as it arrives, and the body limit counts decoded bytes. Another coding is 415 unsupported-encoding."),
+    ),
     request_body(
         description = "A GLB, a .gltf or an OBJ as the whole body, its kind from the Content-Type (model/gltf-binary, model/gltf+json, model/obj or text/x-obj) or, with application/octet-stream, text/plain or none, sniffed; or multipart/form-data with the scene and the files it refers to.",
         content(
@@ -428,7 +442,10 @@ pub async fn tangents(
     post,
     path = "/v1/analyze",
     tag = "scenes",
-    params(AnalyzeQuery),
+    params(
+        AnalyzeQuery,
+        ("Content-Encoding" = Option<String>, Header, description = "gzip (or x-gzip) or zstd for a compressed body; it is decoded as it arrives, and the body limit counts decoded bytes. Another coding is 415 unsupported-encoding."),
+    ),
     request_body(
         description = "As for /v1/tangents: a GLB, a .gltf or an OBJ as the whole body, or multipart/form-data with the scene and the files it refers to.",
         content(

@@ -74,11 +74,20 @@ impl ServerProcess {
     /// A blocking `POST` on a fresh connection; the whole answer, or what came of it when the
     /// connection failed.
     pub fn post(&self, path: &str, body: &[u8], content_type: &str) -> Vec<u8> {
+        self.post_with(path, body, &[("Content-Type", content_type)])
+    }
+
+    /// [`ServerProcess::post`] with the given headers (`Content-Length` is added).
+    pub fn post_with(&self, path: &str, body: &[u8], headers: &[(&str, &str)]) -> Vec<u8> {
         let Ok(mut stream) = std::net::TcpStream::connect(&self.addr) else {
             return Vec::new();
         };
+        let headers: String = headers
+            .iter()
+            .map(|(name, value)| format!("{name}: {value}\r\n"))
+            .collect();
         let head = format!(
-            "POST {path} HTTP/1.1\r\nHost: t\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            "POST {path} HTTP/1.1\r\nHost: t\r\n{headers}Content-Length: {}\r\nConnection: close\r\n\r\n",
             body.len()
         );
         let _ = stream.write_all(head.as_bytes());
