@@ -1115,3 +1115,82 @@ async fn answers_are_compressed_when_asked() {
     assert_eq!(problem["code"], json!("unsupported-media-type"));
     running.shutdown().await.unwrap();
 }
+
+/// `tspace_jobs_cancelled_total` from /metrics.
+async fn jobs_cancelled(base: &str) -> u64 {
+    let text = client()
+        .get(format!("{base}/metrics"))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    text.lines()
+        .find_map(|l| l.strip_prefix("tspace_jobs_cancelled_total "))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("the cancelled-jobs counter")
+}
+
+/// Waits until the pool runs and queues nothing; how long that took.
+async fn until_the_pool_is_idle(running: &Running) -> Duration {
+    let started = std::time::Instant::now();
+    while running.app.pool.running() + running.app.pool.queued() > 0 {
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "the worker stayed busy"
+        );
+        tokio::time::sleep(Duration::from_millis(2)).await;
+    }
+    started.elapsed()
+}
+
+/// A scene whose request timed out (504), or whose client went away, stops its work: the
+/// job ends cancelled (the counter says so; a job that ran to the end would not count) and
+/// the one worker is free for the next request. The scene takes seconds on one worker; the
+/// time from the 504 to a free worker is printed (the closing figures come from this).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_timed_out_or_abandoned_scene_frees_its_worker() {
+    let (running, base) = server(ServerConfig {
+        concurrency: 1,
+        queue: 1,
+        body_limit: 256 << 20,
+        timeout: Duration::from_millis(500),
+        ..ServerConfig::local()
+    })
+    .await;
+    let large = grid(1400);
+    let small = grid(8);
+
+    let started = std::time::Instant::now();
+    let timed_out = post_tangents(&base, large.clone()).await;
+    let answered = started.elapsed();
+    problem(timed_out, 504, "timeout").await;
+    let freed = until_the_pool_is_idle(&running).await;
+    assert_eq!(jobs_cancelled(&base).await, 1);
+    assert_eq!(post_tangents(&base, small.clone()).await.status(), 200);
+    eprintln!(
+        "504 after {} ms; the worker was free {} ms later",
+        answered.as_millis(),
+        freed.as_millis()
+    );
+
+    // A client that gives up while its scene is being processed: its connection closes, the
+    // handler is dropped, and the work stops with it.
+    let impatient = client()
+        .post(format!("{base}/v1/tangents"))
+        .timeout(Duration::from_millis(350))
+        .body(large)
+        .send()
+        .await;
+    assert!(impatient.is_err_and(|e| e.is_timeout()));
+    let gone = std::time::Instant::now();
+    let freed = until_the_pool_is_idle(&running).await;
+    assert_eq!(jobs_cancelled(&base).await, 2);
+    assert_eq!(post_tangents(&base, small).await.status(), 200);
+    eprintln!(
+        "the client left; the worker was free {} ms later",
+        (gone.elapsed().max(freed)).as_millis()
+    );
+    running.shutdown().await.unwrap();
+}

@@ -168,6 +168,24 @@ impl SceneError {
     pub fn class(&self) -> ErrorClass {
         self.code.class()
     }
+
+    /// The work stopped because [`crate::scene::SceneOptions::cancel`] was set: whoever waited
+    /// for it has stopped waiting, so this error is for the log, never for a client.
+    pub fn cancelled() -> Self {
+        SceneError::new(
+            ProblemCode::Timeout,
+            "the work was cancelled: its request timed out or its client went away",
+        )
+    }
+
+    /// `Err(cancelled)` once `cancel` is set: called between the steps of the work.
+    pub fn check(cancel: &tspace_tangent::Cancel) -> Result<(), SceneError> {
+        if cancel.is_cancelled() {
+            Err(SceneError::cancelled())
+        } else {
+            Ok(())
+        }
+    }
 }
 
 impl fmt::Display for SceneError {

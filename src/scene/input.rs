@@ -123,12 +123,14 @@ fn process_obj<'a>(
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
     let parsed = parse_obj(main, options)?;
+    SceneError::check(&options.cancel)?;
     check_reads_as_obj(&parsed)?;
     let mut supplied = Supplied::default();
     let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
     supplied.notices.extend(parse_notices(&parsed.warnings));
     fetch_textures(mtl.as_ref(), resources, &mut supplied);
     let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied, options)?;
+    SceneError::check(&options.cancel)?;
     let mut processed = gltf::process_with(
         &glb_bytes,
         &NoResources,

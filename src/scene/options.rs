@@ -14,7 +14,7 @@
 use super::report::Report;
 use std::fmt;
 use std::str::FromStr;
-use tspace_tangent::{Method, NormalMode};
+use tspace_tangent::{Cancel, Method, NormalMode};
 
 /// Caps on what one scene may make tspace allocate or compute.
 #[derive(Clone, Copy, Debug)]
@@ -200,7 +200,7 @@ impl Choices for Method {
 }
 
 /// What to do with a scene.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct SceneOptions {
     pub method: Method,
     /// Recompute tangents a primitive already has.
@@ -221,6 +221,10 @@ pub struct SceneOptions {
     /// How the written geometry is stored.
     pub compress: Compression,
     pub limits: SceneLimits,
+    /// Set by whoever waits for the scene when they stop waiting (a request that timed out, a
+    /// client that went away): the work stops between steps and inside the core, and the
+    /// scene fails with a `timeout` error nobody reads.
+    pub cancel: Cancel,
 }
 
 impl Default for SceneOptions {
@@ -237,6 +241,7 @@ impl Default for SceneOptions {
             tangents: TangentType::Auto,
             compress: Compression::Auto,
             limits: SceneLimits::default(),
+            cancel: Cancel::default(),
         }
     }
 }

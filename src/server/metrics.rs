@@ -26,6 +26,8 @@ pub struct Metrics {
     latency: Mutex<BTreeMap<String, Histogram>>,
     pub triangles: AtomicU64,
     pub vertices_added: AtomicU64,
+    /// Jobs that stopped (or never started) because their request had stopped waiting.
+    pub jobs_cancelled: AtomicU64,
     /// reason → count (overloaded, too_large, timeout).
     rejections: Mutex<BTreeMap<&'static str, u64>>,
 }
@@ -112,6 +114,12 @@ impl Metrics {
                 "counter",
                 "Vertices added by splits.",
                 self.vertices_added.load(Ordering::Relaxed),
+            ),
+            (
+                "tspace_jobs_cancelled_total",
+                "counter",
+                "Jobs stopped, or dropped before they started, because their request timed out or its client went away.",
+                self.jobs_cancelled.load(Ordering::Relaxed),
             ),
             (
                 "tspace_jobs_queued",

@@ -9,7 +9,7 @@ use super::openapi::{
 };
 use super::problem::Problem;
 use super::{App, content_type};
-use crate::scene::error::ProblemCode;
+use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::input::{self, InputKind};
 use crate::scene::report::Report;
 use crate::scene::uri::{PartSet, percent_decode};
@@ -22,6 +22,7 @@ use axum::response::{IntoResponse, Response};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use tokio::sync::OwnedSemaphorePermit;
+use tspace_tangent::Cancel;
 
 fn invalid_option(detail: String) -> Problem {
     Problem::new(ProblemCode::InvalidOption, detail)
@@ -282,16 +283,47 @@ async fn shed_unread(app: &App, request: Request) -> Problem {
     Problem::overloaded()
 }
 
+/// Cancels a scene's work when the request stops waiting for it: [`run`] returns early with a
+/// 504, or the handler is dropped because its client went away. Then the worker is free within
+/// one step of the work, and a job still queued is dropped when its turn comes.
+struct CancelWhenDropped(Cancel);
+
+impl Drop for CancelWhenDropped {
+    fn drop(&mut self) {
+        // Once the job has answered this changes nothing.
+        self.0.cancel();
+    }
+}
+
 /// Runs the scene on the pool, within the time limit.
 async fn run(app: &Arc<App>, upload: Upload, options: SceneOptions) -> Result<Processed, Problem> {
+    let _cancel_when_dropped = CancelWhenDropped(options.cancel.clone());
+    let metrics_app = Arc::clone(app);
     let job = move || {
+        let cancelled = || {
+            let cancelled = options.cancel.is_cancelled();
+            if cancelled {
+                metrics_app
+                    .metrics
+                    .jobs_cancelled
+                    .fetch_add(1, Ordering::Relaxed);
+            }
+            cancelled
+        };
+        if cancelled() {
+            return Err(Problem::from(SceneError::cancelled()));
+        }
         let mut parts = PartSet::new();
         for (name, bytes) in &upload.parts {
             if let Err(e) = parts.insert(name.clone(), bytes) {
                 return Err(Problem::new(ProblemCode::MalformedMultipart, e.to_string()));
             }
         }
-        input::process(upload.kind, &upload.main, &parts, &options).map_err(Problem::from)
+        let processed = input::process(upload.kind, &upload.main, &parts, &options);
+        if processed.is_err() {
+            cancelled();
+        }
+        processed.map_err(Problem::from)
     };
     let processed = run_job(app, job).await??;
     let summary = &processed.report.summary;
@@ -347,7 +379,8 @@ fn scene_options(app: &App, query: &SceneOptions, write: bool) -> SceneOptions {
             max_triangles: app.config.max_triangles,
             ..SceneLimits::default()
         },
-        ..*query
+        cancel: Cancel::new(),
+        ..query.clone()
     }
 }
 

@@ -118,6 +118,9 @@ pub(crate) struct TriangleCheck<'a> {
     /// Vertices with a non-finite position, normal or texture coordinate; empty when there are
     /// none (the common case, which then costs nothing per triangle).
     pub non_finite_vertex: &'a [bool],
+    /// Checked by the passes over triangles between runs; a cancelled pass skips its remaining
+    /// runs, and its caller returns nothing of it.
+    pub cancel: &'a crate::Cancel,
 }
 
 impl TriangleCheck<'_> {

@@ -187,7 +187,14 @@ pub(crate) fn generate(
         },
     );
     diagnostics.set_triangles(triangles);
+    // Between passes, a cancelled computation stops; its caller returns nothing of it.
+    if check.cancel.is_cancelled() {
+        return SplitPlan::default();
+    }
     let weld = weld_mesh(mesh, parallel);
+    if check.cancel.is_cancelled() {
+        return SplitPlan::default();
+    }
     let corner_class: Vec<u32> = mesh
         .indices
         .iter()

@@ -69,6 +69,10 @@
 //! `source_vertex` lists the input vertex each output vertex copies (so skin weights, colours and
 //! morph targets can be duplicated the same way), and `indices` gives every corner its output
 //! vertex, triangle for triangle in input order.
+//!
+//! A service that stops waiting for a result (its request timed out, its client left) can get
+//! its thread back: [`generate_cancellable`] takes a [`Cancel`] flag that another thread sets,
+//! and returns [`CoreError::Cancelled`] within one pass or one run of 16,384 triangles.
 
 #![warn(missing_docs)]
 
@@ -94,6 +98,35 @@ pub use split::SplitPlan;
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::fmt;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// A request to stop a [`generate_cancellable`] that is under way, from another thread: a
+/// service whose client has gone (timed out, disconnected) wants its thread back at once, not
+/// when a mesh of millions of triangles is done. Clones share one flag. The computation checks
+/// it between its passes and between runs of 16,384 triangles, so it stops within one such step.
+#[derive(Clone, Debug, Default)]
+pub struct Cancel(Option<Arc<AtomicBool>>);
+
+impl Cancel {
+    /// A flag that [`Cancel::cancel`] can set.
+    pub fn new() -> Self {
+        Cancel(Some(Arc::new(AtomicBool::new(false))))
+    }
+
+    /// Asks every computation holding a clone of this flag to stop.
+    pub fn cancel(&self) {
+        if let Some(flag) = &self.0 {
+            flag.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Whether [`Cancel::cancel`] was called; never for the default, which cannot be set.
+    #[inline]
+    pub fn is_cancelled(&self) -> bool {
+        self.0.as_ref().is_some_and(|f| f.load(Ordering::Relaxed))
+    }
+}
 
 /// How tangents are computed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -306,6 +339,8 @@ pub enum CoreError {
         /// The vertex or corner count.
         count: usize,
     },
+    /// [`Cancel::cancel`] was called; nothing was computed.
+    Cancelled,
 }
 
 impl fmt::Display for CoreError {
@@ -338,6 +373,7 @@ impl fmt::Display for CoreError {
             CoreError::TooLarge { count } => {
                 write!(f, "{count} elements exceed what 32-bit indices can address")
             }
+            CoreError::Cancelled => f.write_str("the computation was cancelled"),
         }
     }
 }
@@ -346,6 +382,15 @@ impl std::error::Error for CoreError {}
 
 /// Computes tangents for one triangle list.
 pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, CoreError> {
+    generate_cancellable(input, options, &Cancel::default())
+}
+
+/// [`generate`], which stops with [`CoreError::Cancelled`] soon after `cancel` is set.
+pub fn generate_cancellable(
+    input: &MeshInput<'_>,
+    options: &Options,
+    cancel: &Cancel,
+) -> Result<Tangents, CoreError> {
     check_lengths(input, options.parallel)?;
     if options.method != Method::Axis && input.uvs.is_none() {
         return Err(CoreError::MissingUvs {
@@ -354,7 +399,14 @@ pub fn generate(input: &MeshInput<'_>, options: &Options) -> Result<Tangents, Co
     }
     let prepared = Prepared::new(input, options.normal_mode);
     let mesh = prepared.mesh();
-    let (mut diagnostics, mut split) = run_method(&mesh, options);
+    if cancel.is_cancelled() {
+        return Err(CoreError::Cancelled);
+    }
+    let (mut diagnostics, mut split) = run_method(&mesh, options, cancel);
+    // A cancelled pass leaves what it had not done at its defaults: nothing of it is returned.
+    if cancel.is_cancelled() {
+        return Err(CoreError::Cancelled);
+    }
     let normals = prepared.express_in_input_vertices(&mut split, &mut diagnostics);
     Ok(Tangents {
         split,
@@ -470,12 +522,17 @@ impl<'a> Prepared<'a> {
 
 /// The vertex checks, then the chosen method (which checks the triangles in its own pass, but
 /// for axis, which needs one of its own); the diagnostics and the split plan it makes.
-fn run_method(mesh: &math::Mesh<'_>, options: &Options) -> (Diagnostics, SplitPlan) {
+fn run_method(
+    mesh: &math::Mesh<'_>,
+    options: &Options,
+    cancel: &Cancel,
+) -> (Diagnostics, SplitPlan) {
     let (mut diagnostics, non_finite_vertex) = diagnostics::analyze_vertices(mesh, options);
     let triangle_check = diagnostics::TriangleCheck {
         uv_origin: options.uv_origin,
         has_uvs: mesh.uvs.is_some(),
         non_finite_vertex: &non_finite_vertex,
+        cancel,
     };
     // Axis tangents have no UV handedness to convert.
     let flip_w = options.method != Method::Axis && options.uv_origin == UvOrigin::TopLeft;
@@ -580,6 +637,81 @@ fn check_lengths(input: &MeshInput<'_>, parallel: bool) -> Result<(), CoreError>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    type Grid = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[f32; 2]>, Vec<u32>);
+
+    /// An `n` × `n` grid of quads in the z = 0 plane with UVs along x and y, welded: positions,
+    /// normals, UVs and indices.
+    fn grid(n: u32) -> Grid {
+        let side = n + 1;
+        let mut positions = Vec::new();
+        let mut uvs = Vec::new();
+        for y in 0..side {
+            for x in 0..side {
+                positions.push([x as f32, y as f32, 0.0]);
+                uvs.push([x as f32 / n as f32, y as f32 / n as f32]);
+            }
+        }
+        let mut indices = Vec::new();
+        for y in 0..n {
+            for x in 0..n {
+                let v = y * side + x;
+                indices.extend_from_slice(&[v, v + 1, v + side + 1, v, v + side + 1, v + side]);
+            }
+        }
+        let normals = vec![[0.0, 0.0, 1.0]; positions.len()];
+        (positions, normals, uvs, indices)
+    }
+
+    /// A flag set before the start stops every method at once; set at any moment during the
+    /// work, it gives either the whole, valid result or `Cancelled`, never a panic or a
+    /// partial plan (the passes it interrupts leave defaults behind, which must not leak).
+    #[test]
+    fn a_cancelled_computation_returns_nothing_and_never_panics() {
+        let (positions, normals, uvs, indices) = grid(400);
+        let input = MeshInput {
+            positions: &positions,
+            normals: Some(&normals),
+            uvs: Some(&uvs),
+            indices: Some(&indices),
+        };
+        for method in Method::ALL {
+            for parallel in [false, true] {
+                let options = Options {
+                    method,
+                    parallel,
+                    ..Options::default()
+                };
+                let whole = generate(&input, &options).unwrap();
+                let cancel = Cancel::new();
+                cancel.cancel();
+                assert_eq!(
+                    generate_cancellable(&input, &options, &cancel).unwrap_err(),
+                    CoreError::Cancelled
+                );
+                let mut stopped = 0;
+                for delay_us in (0..4000).step_by(250) {
+                    let cancel = Cancel::new();
+                    let result = std::thread::scope(|scope| {
+                        let flag = cancel.clone();
+                        scope.spawn(move || {
+                            std::thread::sleep(std::time::Duration::from_micros(delay_us));
+                            flag.cancel();
+                        });
+                        generate_cancellable(&input, &options, &cancel)
+                    });
+                    match result {
+                        Ok(tangents) => assert_eq!(tangents.split, whole.split, "{method:?}"),
+                        Err(e) => {
+                            assert_eq!(e, CoreError::Cancelled);
+                            stopped += 1;
+                        }
+                    }
+                }
+                assert!(stopped > 0, "{method:?}: never cancelled");
+            }
+        }
+    }
 
     #[test]
     fn method_names_parse_back_and_unknown_ones_say_what_is_accepted() {

@@ -163,6 +163,9 @@ pub(crate) fn per_triangle_pass<O: PerTriangle, S: Default>(
         let mut triangles = TriangleColumns::default();
         let mut scratch = S::default();
         let mut start = first;
+        if check.cancel.is_cancelled() {
+            return tallies;
+        }
         while out.len() > 0 {
             let len = out.len().min(BATCH);
             let (items, later) = out.split_at(len);

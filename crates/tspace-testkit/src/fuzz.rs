@@ -83,6 +83,7 @@ fn scene_options(data: &[u8]) -> SceneOptions {
         normals: Default::default(),
         normals_angle: 60.0,
         limits: LIMITS,
+        cancel: Default::default(),
     }
 }
 

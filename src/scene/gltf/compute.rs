@@ -7,7 +7,9 @@ use super::plan::{GeometryKey, Topology};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::{Audit, TallyReport};
 use tspace_json::Node;
-use tspace_tangent::{self as tangent, CoreError, MeshInput, Options, SplitPlan, Tally, Tangents};
+use tspace_tangent::{
+    self as tangent, Cancel, CoreError, MeshInput, Options, SplitPlan, Tally, Tangents,
+};
 
 /// Limits on the geometry one scene may hold.
 #[derive(Clone, Copy, Debug)]
@@ -85,6 +87,7 @@ pub fn accessor_error(error: AccessorError) -> SceneError {
 
 fn core_error(path: &str, error: CoreError) -> SceneError {
     match error {
+        CoreError::Cancelled => SceneError::cancelled(),
         CoreError::TooLarge { .. } => {
             SceneError::new(ProblemCode::TooManyVertices, format!("{path}: {error}"))
         }
@@ -266,7 +269,7 @@ fn displaced(base: &[[f32; 3]], displacement: &Option<Vec<[f32; 3]>>) -> Vec<[f3
 fn morphed_tangents(
     geometry: &Geometry,
     displacement: &Displacement,
-    options: &Options,
+    run: &Run<'_>,
 ) -> Result<Tangents, CoreError> {
     let positions = displaced(&geometry.positions, &displacement.positions);
     let normals = geometry.normals.as_ref().map(|n| {
@@ -274,14 +277,15 @@ fn morphed_tangents(
         normalize(&mut morphed);
         morphed
     });
-    tangent::generate(
+    tangent::generate_cancellable(
         &MeshInput {
             positions: &positions,
             normals: normals.as_deref(),
             uvs: geometry.uvs.as_deref(),
             indices: geometry.indices.as_deref(),
         },
-        options,
+        run.options,
+        run.cancel,
     )
 }
 
@@ -309,19 +313,27 @@ fn tangent_deltas(base: &SplitPlan, morphed: &Tangents) -> (Vec<[f32; 3]>, u64) 
     (deltas, handedness_changes)
 }
 
+/// How to run the core on one geometry.
+pub struct Run<'a> {
+    pub options: &'a Options,
+    pub limits: &'a GeometryLimits,
+    /// Stops the core, and the morph targets not yet begun.
+    pub cancel: &'a Cancel,
+}
+
 /// Runs the core on a key's geometry and on each of its morph targets.
 pub fn compute(
     root: &Node,
     key: &GeometryKey,
     data: Data<'_>,
-    options: &Options,
-    limits: &GeometryLimits,
+    run: &Run<'_>,
     path: &str,
 ) -> Result<Computed, SceneError> {
+    let limits = run.limits;
     let mut geometry = read_geometry(root, key, data, limits)?;
     keep_whole_triangles(&mut geometry, key.topology, path)?;
-    let tangents =
-        tangent::generate(&geometry.input(), options).map_err(|e| core_error(path, e))?;
+    let tangents = tangent::generate_cancellable(&geometry.input(), run.options, run.cancel)
+        .map_err(|e| core_error(path, e))?;
 
     let mut target_deltas = Vec::with_capacity(key.targets.len());
     let mut morph_handedness_changes = 0;
@@ -334,7 +346,7 @@ pub fn compute(
             target_deltas.push(None);
             continue;
         };
-        let morphed = morphed_tangents(&geometry, &displacement, options)
+        let morphed = morphed_tangents(&geometry, &displacement, run)
             .map_err(|e| core_error(&target_path, e))?;
         let (deltas, handedness_changes) = tangent_deltas(&tangents.split, &morphed);
         morph_handedness_changes += handedness_changes;

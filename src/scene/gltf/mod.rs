@@ -27,7 +27,7 @@ use quantize::Snorm;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use tspace_json::Node;
-use tspace_tangent::{Method, Options, UvOrigin};
+use tspace_tangent::{Cancel, Method, Options, UvOrigin};
 use write::{Changes, PrimitiveEdit, Ref};
 
 fn accessor_count(root: &Node, index: Option<usize>) -> usize {
@@ -73,19 +73,25 @@ pub fn process_with<'a>(
     let load_limits = LoadLimits {
         max_buffer_bytes: limits.max_buffer_bytes,
     };
+    // Between steps, work nobody waits for any more stops (see SceneOptions::cancel).
+    let cancel = &options.cancel;
     let loaded = load::load(bytes, resources, &load_limits)?;
+    SceneError::check(cancel)?;
     let root = loaded.doc.root();
     let plans = plan::plan(root, &plan_options(options, internal));
     let jobs = plan_jobs(&plans, options.method);
     check_triangle_budget(root, &jobs.list, limits.max_triangles)?;
     let buffers = loaded.buffer_slices();
     let decoded = decode_draco(root, &plans, &jobs, &buffers, options)?;
+    SceneError::check(cancel)?;
     let data = Data {
         buffers: &buffers,
         decoded: &decoded,
     };
     let computed = compute_jobs(root, &jobs.list, data, options)?;
+    SceneError::check(cancel)?;
     let scene = Scene {
+        cancel,
         root,
         data,
         max_vertices: limits.max_vertices,
@@ -96,6 +102,7 @@ pub fn process_with<'a>(
     let mut report = report_header(bytes, &loaded, options);
     let edits = report_primitives(&scene, &plans, &jobs, &computed, &mut report)?;
     add_totals(&mut report, &computed, &edits);
+    SceneError::check(cancel)?;
     let bytes = write_scene(
         bytes,
         &loaded,
@@ -260,6 +267,7 @@ fn compute_jobs(
     let results: Vec<Result<Computed, SceneError>> = jobs
         .par_iter()
         .map(|job| {
+            SceneError::check(&options.cancel)?;
             // Large meshes are worth spreading over the threads inside the core too.
             let large = accessor_count(root, job.key.indices.or(Some(job.key.position))) > 300_000;
             let core_options = Options {
@@ -269,7 +277,12 @@ fn compute_jobs(
                 parallel: large,
                 ..Options::default()
             };
-            compute::compute(root, &job.key, data, &core_options, &limits, &job.path)
+            let run = compute::Run {
+                options: &core_options,
+                limits: &limits,
+                cancel: &options.cancel,
+            };
+            compute::compute(root, &job.key, data, &run, &job.path)
         })
         .collect();
     results.into_iter().collect()
@@ -301,6 +314,7 @@ fn report_header(bytes: &[u8], loaded: &load::Loaded<'_>, options: &SceneOptions
 
 /// What every primitive's step reads.
 struct Scene<'s> {
+    cancel: &'s Cancel,
     root: &'s Node,
     data: Data<'s>,
     max_vertices: usize,
@@ -321,6 +335,7 @@ fn report_primitives(
     let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
     report.primitives.reserve_exact(plans.len());
     for (plan, &job) in plans.iter().zip(&jobs.of_plan) {
+        SceneError::check(scene.cancel)?;
         report.summary.primitives += 1;
         let here = [plan.mesh, plan.primitive];
         let first = job.map(|j| *first_plan_of_job.entry(j).or_insert(here));

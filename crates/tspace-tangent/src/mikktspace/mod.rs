@@ -76,6 +76,11 @@ pub(crate) fn generate(
 ) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh, parallel);
+    // Between passes, a cancelled computation stops; its caller returns nothing of it.
+    let cancelled = || check.cancel.is_cancelled();
+    if cancelled() {
+        return SplitPlan::default();
+    }
 
     let mut contributions = filled(triangle_count, parallel, || [Contribution::ZERO; 3]);
     let mut flags = vec![0u8; triangle_count];
@@ -88,6 +93,9 @@ pub(crate) fn generate(
             columns.compute(mesh, triangles, check, contributions, flags);
         },
     );
+    if cancelled() {
+        return SplitPlan::default();
+    }
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
@@ -108,6 +116,9 @@ pub(crate) fn generate(
         parallel,
     );
 
+    if cancelled() {
+        return SplitPlan::default();
+    }
     let context = Context {
         mesh,
         corner_class: &corner_class,
@@ -137,6 +148,13 @@ pub(crate) fn generate(
             .into_par_iter()
             .map(|range| {
                 let mut copies = Copies::default();
+                if cancelled() {
+                    let nothing = Piece {
+                        repairs: Vec::new(),
+                        touched: Vec::new(),
+                    };
+                    return (nothing, copies);
+                }
                 let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
                 let piece = context.process_classes(range, &flags, &degenerate, &mut put);
                 (piece, copies)
@@ -157,6 +175,9 @@ pub(crate) fn generate(
         let piece = context.process_classes(0..weld.class_count, &flags, &degenerate, &mut put);
         (vec![copies], piece.repairs, piece.touched)
     };
+    if cancelled() {
+        return SplitPlan::default();
+    }
     // The vertices left for the sequential pass own their input vertices too: new copies.
     let mut copies = Copies::default();
     let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
