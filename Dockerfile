@@ -18,7 +18,8 @@ COPY Cargo.toml Cargo.lock ./
 COPY crates ./crates
 COPY benches ./benches
 COPY src ./src
-# The image's binary carries no debug information or symbols (about 55 MB -> 17 MB).
+# The image's binary carries no debug information or symbols: about 18 MB, where the release
+# profile's, with its line tables, is about 90 MB (measured 2026-11-24).
 ENV CARGO_PROFILE_RELEASE_DEBUG=false CARGO_PROFILE_RELEASE_STRIP=symbols
 RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
