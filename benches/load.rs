@@ -58,15 +58,22 @@ fn ms(d: Duration) -> f64 {
 struct Phase {
     accepted: Vec<Duration>,
     shed: usize,
+    /// Refused with the body unsent: the server answered 503 and closed the connection while
+    /// the client was still sending (it does not read a refused body), and the client reported
+    /// its broken write instead of the 503.
+    closed: usize,
     /// Any other status, or a failed connection: each is a failure of the test.
     unexpected: Vec<String>,
     seconds: f64,
+    /// The server process's CPU time (user + system) during the phase.
+    server_cpu: Duration,
 }
 
 impl Phase {
     fn merge(&mut self, other: Phase) {
         self.accepted.extend(other.accepted);
         self.shed += other.shed;
+        self.closed += other.closed;
         self.unexpected.extend(other.unexpected);
     }
 
@@ -74,18 +81,21 @@ impl Phase {
     fn row(&mut self, name: &str, offered: f64) -> String {
         self.accepted.sort();
         let ok = self.accepted.len();
-        let shed = self.shed;
+        let (shed, closed) = (self.shed, self.closed);
         let unexpected = self.unexpected.len();
-        let total = ok + shed + unexpected;
+        let total = ok + shed + closed + unexpected;
         let goodput = ok as f64 / self.seconds;
         let [p50, p90, p99, max] = [0.5, 0.9, 0.99, 1.0].map(|p| ms(percentile(&self.accepted, p)));
+        // The server's CPU per answered request: what a refusal costs shows as the difference
+        // between the overload and the capacity rows.
+        let cpu = ms(self.server_cpu) / total.max(1) as f64;
         println!(
-            "{name:>9} {offered:>9.1} {total:>8} {ok:>7} {shed:>6} {unexpected:>6} {goodput:>9.1} \
-             {p50:>8.2} {p90:>8.2} {p99:>8.2} {max:>8.2}"
+            "{name:>9} {offered:>9.1} {total:>8} {ok:>7} {shed:>6} {closed:>6} {unexpected:>6} \
+             {goodput:>9.1} {p50:>8.2} {p90:>8.2} {p99:>8.2} {max:>8.2} {cpu:>8.2}"
         );
         format!(
-            "{name},{offered:.1},{total},{ok},{shed},{unexpected},{goodput:.1},{p50:.2},{p90:.2},\
-             {p99:.2},{max:.2}"
+            "{name},{offered:.1},{total},{ok},{shed},{closed},{unexpected},{goodput:.1},{p50:.2},\
+             {p90:.2},{p99:.2},{max:.2},{cpu:.2}"
         )
     }
 }
@@ -108,14 +118,44 @@ async fn request(http: &reqwest::Client, url: &str, body: bytes::Bytes) -> (u16,
                 Err(e) => (0, started.elapsed(), format!("reading the answer: {e}")),
             }
         }
-        Err(e) => (0, started.elapsed(), format!("{e}")),
+        Err(e) => {
+            // The whole chain: "error sending request" alone does not say what happened.
+            let mut message = e.to_string();
+            let mut cause = std::error::Error::source(&e);
+            while let Some(c) = cause {
+                message.push_str(&format!(": {c}"));
+                cause = c.source();
+            }
+            (0, started.elapsed(), message)
+        }
     }
+}
+
+/// The CPU time (user + system) process `pid` has used, from /proc (in clock ticks of 10 ms,
+/// Linux's `USER_HZ` on every platform it runs on).
+fn cpu_time(pid: u32) -> Duration {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+    // Fields after the command name, which is in parentheses and may hold spaces.
+    let fields: Vec<&str> = stat
+        .rsplit_once(')')
+        .map_or("", |(_, rest)| rest)
+        .split_whitespace()
+        .collect();
+    let ticks = |i: usize| {
+        fields
+            .get(i)
+            .and_then(|f| f.parse::<u64>().ok())
+            .unwrap_or(0)
+    };
+    // utime and stime are fields 14 and 15 of the line, 12 and 13 after the name.
+    Duration::from_millis((ticks(11) + ticks(12)) * 10)
 }
 
 fn record(phase: &mut Phase, (status, latency, error): (u16, Duration, String)) {
     match status {
         200 => phase.accepted.push(latency),
         503 => phase.shed += 1,
+        0 if error.contains("error writing a body to connection") => phase.closed += 1,
         0 => phase.unexpected.push(error),
         other => phase.unexpected.push(format!("status {other}")),
     }
@@ -199,7 +239,7 @@ fn main() {
     let outstanding_limit = env_number("TSPACE_LOAD_OUTSTANDING", 1024.0) as usize;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let queue = 16;
-    let in_flight = 4 * (cores + queue);
+    let in_flight = 2 * (cores + queue);
     let server = ServerProcess::start(
         env!("CARGO_BIN_EXE_tspace"),
         &["--queue", &queue.to_string()],
@@ -241,35 +281,59 @@ fn main() {
     };
 
     let mut csv = String::from(
-        "phase,offered_per_s,requests,ok,shed,unexpected,ok_per_s,p50_ms,p90_ms,p99_ms,max_ms\n",
+        "phase,offered_per_s,requests,ok,shed,closed,unexpected,ok_per_s,p50_ms,p90_ms,p99_ms,max_ms,server_cpu_ms_per_request\n",
     );
     println!(
-        "{:>9} {:>9} {:>8} {:>7} {:>6} {:>6} {:>9} {:>8} {:>8} {:>8} {:>8}",
+        "{:>9} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8}",
         "phase",
         "offered/s",
         "requests",
         "ok",
         "503",
+        "closed",
         "other",
         "ok/s",
         "p50 ms",
         "p90 ms",
         "p99 ms",
-        "max ms"
+        "max ms",
+        "cpu ms"
     );
     let mut failures = Vec::new();
     let (capacity, overload_p99, recovery) = runtime.block_on(async {
+        let pid = server.pid();
+        let cpu_before = cpu_time(pid);
         let mut baseline = closed_loop(&url, &body, 1, 3.0).await;
+        baseline.server_cpu = cpu_time(pid) - cpu_before;
         csv.push_str(&baseline.row("baseline", 0.0));
         csv.push('\n');
+        let cpu_before = cpu_time(pid);
         let mut saturated = closed_loop(&url, &body, 2 * cores, 10.0).await;
+        saturated.server_cpu = cpu_time(pid) - cpu_before;
         let capacity = saturated.accepted.len() as f64 / saturated.seconds;
         csv.push_str(&saturated.row("capacity", 0.0));
         csv.push('\n');
 
         let rate = factor * capacity;
         let rss_before = server.memory("VmRSS");
+        let logged_before = server.logs().len();
+        let cpu_before = cpu_time(pid);
         let (mut overload, skipped) = open_loop(&url, &body, rate, seconds, outstanding_limit).await;
+        overload.server_cpu = cpu_time(pid) - cpu_before;
+        let mut served: Vec<u64> = server.logs()[logged_before..]
+            .iter()
+            .filter(|l| l.contains("status=200"))
+            .filter_map(|l| l.split("latency=").nth(1)?.split(' ').next()?.parse().ok())
+            .collect();
+        served.sort_unstable();
+        if !served.is_empty() {
+            let at = |q: f64| served[((served.len() - 1) as f64 * q).round() as usize];
+            println!(
+                "  in the server (first byte to the answer's head) the accepted took p50 {} ms, p99 {} ms",
+                at(0.5),
+                at(0.99)
+            );
+        }
         let load_stopped = Instant::now();
         csv.push_str(&overload.row("overload", rate));
         csv.push('\n');

@@ -34,7 +34,7 @@ pub struct ServeArgs {
     #[arg(long, env = "TSPACE_QUEUE", default_value_t = 16)]
     pub queue: usize,
     /// Scene requests in progress at once, from the first byte of the body to the last byte of
-    /// the answer (default: 4 × (concurrency + queue)); beyond that, requests get 503 before
+    /// the answer (default: 2 × (concurrency + queue)); beyond that, requests get 503 before
     /// their body is buffered.
     #[arg(long, env = "TSPACE_IN_FLIGHT")]
     pub in_flight: Option<usize>,
@@ -105,7 +105,7 @@ impl From<ServeArgs> for ServerConfig {
             // keeps a few of them from refusing everyone else.
             in_flight: args
                 .in_flight
-                .unwrap_or(4 * (concurrency + args.queue))
+                .unwrap_or(2 * (concurrency + args.queue))
                 .max(1),
             timeout: Duration::from_secs(args.timeout.max(1)),
             read_timeout: Duration::from_secs(args.read_timeout.max(1)),

@@ -9,6 +9,7 @@
 use axum::body::Bytes;
 use http_body::{Body, Frame, SizeHint};
 use std::convert::Infallible;
+use std::future::Future;
 use std::pin::Pin;
 use std::task::{Context, Poll};
 use tokio::sync::OwnedSemaphorePermit;
@@ -48,6 +49,61 @@ impl Body for HeldBody {
 
     fn is_end_stream(&self) -> bool {
         self.rest.is_empty()
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        SizeHint::with_exact(self.rest.len() as u64)
+    }
+}
+
+/// A short body that, once sent, keeps its response open for a while before it ends: hyper
+/// closes a connection whose request body is unread as soon as the response ends, and a close
+/// with unread bytes is a reset that can overtake the response at the client. With
+/// `Content-Length` the client has its whole answer before the wait.
+pub struct LingeringBody {
+    rest: Bytes,
+    linger: Option<Pin<Box<tokio::time::Sleep>>>,
+    duration: std::time::Duration,
+}
+
+impl LingeringBody {
+    /// `body` must be small and already in memory (a problem document); anything else is sent
+    /// as nothing.
+    pub fn new(body: axum::body::Body, duration: std::time::Duration) -> Self {
+        let rest = match body.size_hint().exact() {
+            Some(n) if n <= 64 << 10 => {
+                futures_util::FutureExt::now_or_never(http_body_util::BodyExt::collect(body))
+                    .and_then(Result::ok)
+                    .map(|collected| collected.to_bytes())
+                    .unwrap_or_default()
+            }
+            _ => Bytes::new(),
+        };
+        LingeringBody {
+            rest,
+            linger: None,
+            duration,
+        }
+    }
+}
+
+impl Body for LingeringBody {
+    type Data = Bytes;
+    type Error = Infallible;
+
+    fn poll_frame(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Bytes>, Infallible>>> {
+        if !self.rest.is_empty() {
+            let frame = std::mem::take(&mut self.rest);
+            return Poll::Ready(Some(Ok(Frame::data(frame))));
+        }
+        let duration = self.duration;
+        let linger = self
+            .linger
+            .get_or_insert_with(|| Box::pin(tokio::time::sleep(duration)));
+        linger.as_mut().poll(cx).map(|()| None)
     }
 
     fn size_hint(&self) -> SizeHint {

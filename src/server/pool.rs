@@ -5,6 +5,13 @@
 //! inside it); up to `queue` more wait. A job beyond that is refused at once, so that a burst
 //! costs the client a 503 and a retry, not the server its memory. A job that panics reports the
 //! panic instead of a result; the worker thread survives.
+//!
+//! A request takes its place with [`WorkerPool::reserve`] when it arrives, before its body is
+//! read: a place is then a promise of service, and what waits for a worker is bounded by
+//! `concurrency + queue` whether it is still uploading or already queued. Taking the place only
+//! once the body was in let every arrival upload while the pool looked free: under overload
+//! dozens of uploads shared the cores, each took hundreds of milliseconds, and most then found
+//! the queue full and were refused having been read for nothing.
 
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
@@ -53,14 +60,15 @@ impl WorkerPool {
         })
     }
 
-    /// Jobs waiting for a worker.
+    /// Places taken and not running: requests whose body is still arriving, and jobs waiting
+    /// for a worker.
     pub fn queued(&self) -> usize {
         self.admitted
             .load(Ordering::Acquire)
             .saturating_sub(self.running.load(Ordering::Acquire))
     }
 
-    /// Whether [`WorkerPool::submit`] would refuse a job now.
+    /// Whether [`WorkerPool::reserve`] would refuse now.
     pub fn is_full(&self) -> bool {
         self.admitted.load(Ordering::Acquire) >= self.capacity
     }
@@ -69,13 +77,9 @@ impl WorkerPool {
         self.running.load(Ordering::Acquire)
     }
 
-    /// Queues `job`, or refuses it when the pool is full. The receiver yields the job's result,
-    /// or its panic.
-    pub fn submit<T, F>(&self, job: F) -> Result<oneshot::Receiver<Result<T, Panicked>>, Overloaded>
-    where
-        T: Send + 'static,
-        F: FnOnce() -> T + Send + 'static,
-    {
+    /// A place for one job, or a refusal when the pool is full. The place is given back when
+    /// the job it was submitted with is done, or when it is dropped unused.
+    pub fn reserve(&self) -> Result<Reservation<'_>, Overloaded> {
         let admitted = self
             .admitted
             .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| {
@@ -84,12 +88,43 @@ impl WorkerPool {
         if admitted.is_err() {
             return Err(Overloaded);
         }
-        let slot = Slot {
-            admitted: Arc::clone(&self.admitted),
-        };
-        let running = Arc::clone(&self.running);
+        Ok(Reservation {
+            pool: self,
+            slot: Slot {
+                admitted: Arc::clone(&self.admitted),
+            },
+        })
+    }
+
+    /// Queues `job`, or refuses it when the pool is full. The receiver yields the job's result,
+    /// or its panic.
+    #[cfg(test)]
+    pub fn submit<T, F>(&self, job: F) -> Result<oneshot::Receiver<Result<T, Panicked>>, Overloaded>
+    where
+        T: Send + 'static,
+        F: FnOnce() -> T + Send + 'static,
+    {
+        Ok(self.reserve()?.submit(job))
+    }
+}
+
+/// A place in the pool, taken by [`WorkerPool::reserve`].
+pub struct Reservation<'a> {
+    pool: &'a WorkerPool,
+    slot: Slot,
+}
+
+impl Reservation<'_> {
+    /// Queues `job` in this place. The receiver yields the job's result, or its panic.
+    pub fn submit<T, F>(self, job: F) -> oneshot::Receiver<Result<T, Panicked>>
+    where
+        T: Send + 'static,
+        F: FnOnce() -> T + Send + 'static,
+    {
+        let Reservation { pool, slot } = self;
+        let running = Arc::clone(&pool.running);
         let (sender, receiver) = oneshot::channel();
-        self.threads.spawn(move || {
+        pool.threads.spawn(move || {
             running.fetch_add(1, Ordering::AcqRel);
             let outcome = std::panic::catch_unwind(AssertUnwindSafe(job)).map_err(|payload| {
                 let message = payload
@@ -104,7 +139,7 @@ impl WorkerPool {
             // The client may have gone (timed out or disconnected); the result is then dropped.
             let _ = sender.send(outcome);
         });
-        Ok(receiver)
+        receiver
     }
 }
 
@@ -132,6 +167,18 @@ mod tests {
         assert_eq!(first.await.unwrap().unwrap(), 7);
         assert_eq!(second.await.unwrap().unwrap(), 7);
         assert_eq!(pool.submit(|| 1).unwrap().await.unwrap().unwrap(), 1);
+    }
+
+    #[tokio::test]
+    async fn a_reserved_place_counts_until_used_or_dropped() {
+        let pool = WorkerPool::new(1, 1).unwrap();
+        let first = pool.reserve().unwrap();
+        let second = pool.reserve().unwrap();
+        assert!(pool.is_full() && pool.reserve().is_err());
+        drop(second);
+        assert!(!pool.is_full());
+        assert_eq!(first.submit(|| 3).await.unwrap().unwrap(), 3);
+        assert_eq!(pool.queued() + pool.running(), 0);
     }
 
     #[tokio::test]
