@@ -124,7 +124,7 @@ impl Metrics {
             (
                 "tspace_jobs_queued",
                 "gauge",
-                "Jobs waiting for a worker.",
+                "Requests holding a place in the pool and not yet running: uploading, or waiting for a worker.",
                 queued as u64,
             ),
             (
