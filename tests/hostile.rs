@@ -545,6 +545,8 @@ fn compression_bombs_are_refused_at_the_limit_without_inflating() {
             "{coding}: {}",
             status_line(&answer)
         );
+        // Against the peak before the first bomb: a second bomb may not add to what the
+        // first left behind (memory freed after a refusal goes back to the system).
         let grown = server.memory("VmHWM").saturating_sub(before);
         eprintln!(
             "{coding} bomb: {} KiB on the wire for 1 GiB decoded: 413; the server's peak RSS grew {} MiB (body limit {} MiB)",
@@ -558,4 +560,14 @@ fn compression_bombs_are_refused_at_the_limit_without_inflating() {
             grown >> 20
         );
     }
+    let held = server.memory("VmRSS").saturating_sub(before);
+    eprintln!(
+        "after both: the server holds {} MiB more than its peak before them",
+        held >> 20
+    );
+    assert!(
+        held < 16 << 20,
+        "the refused bombs' memory stayed with the server: {} MiB",
+        held >> 20
+    );
 }

@@ -4,9 +4,11 @@
 //! Routes: `POST /v1/tangents`, `POST /v1/analyze`, `GET /healthz`, `GET /readyz`,
 //! `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
 
+pub mod budget;
 pub mod encoding;
 mod held;
 pub mod keys;
+pub(crate) mod memory;
 pub mod metrics;
 mod mixed;
 pub mod openapi;
@@ -54,6 +56,8 @@ pub struct App {
     pub in_flight: Arc<tokio::sync::Semaphore>,
     /// The keys the scene routes require, when the service was given a key file.
     pub api_keys: Option<keys::ApiKeys>,
+    /// How much of refused uploads is read, so that their clients get a clean 503.
+    pub drain_budget: budget::DrainBudget,
 }
 
 impl App {
@@ -64,7 +68,12 @@ impl App {
             Some(path) => Some(keys::ApiKeys::read(path).map_err(std::io::Error::other)?),
             None => None,
         };
+        // 64 MiB/s of refused bodies is a few percent of a core; a burst of one body limit
+        // (at least 64 MiB) answers a burst of refusals cleanly.
+        let drain_budget =
+            budget::DrainBudget::new(64.0 * MIB, (config.body_limit as f64).max(64.0 * MIB));
         Ok(App {
+            drain_budget,
             api_keys,
             pool: WorkerPool::new(config.concurrency, config.queue)?,
             in_flight: Arc::new(tokio::sync::Semaphore::new(config.in_flight.max(1))),
@@ -74,6 +83,8 @@ impl App {
         })
     }
 }
+
+const MIB: f64 = 1024.0 * 1024.0;
 
 const REQUEST_ID: HeaderName = HeaderName::from_static("x-request-id");
 

@@ -237,13 +237,13 @@ struct Admitted<'a> {
 /// A slot and a place for a scene request, or the 503 when the pool has no place or as many
 /// requests as `in_flight` allows are in progress: then the request is refused before its body
 /// is read.
-fn admit(app: &App, request: Request) -> Result<(Request, Admitted<'_>), Box<Response>> {
+async fn admit(app: &App, request: Request) -> Result<(Request, Admitted<'_>), Box<Response>> {
     let Ok(permit) = Arc::clone(&app.in_flight).try_acquire_owned() else {
-        return Err(Box::new(shed_unread(app, &request)));
+        return Err(Box::new(shed_unread(app, request).await));
     };
     match app.pool.reserve() {
         Ok(place) => Ok((request, Admitted { permit, place })),
-        Err(_) => Err(Box::new(shed_unread(app, &request))),
+        Err(_) => Err(Box::new(shed_unread(app, request).await)),
     }
 }
 
@@ -252,6 +252,11 @@ fn admit(app: &App, request: Request) -> Result<(Request, Admitted<'_>), Box<Res
 async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Problem> {
     let upload = tokio::time::timeout(app.config.read_timeout, read_upload(app, request)).await;
     match upload {
+        Ok(Err(refused)) if refused.code == ProblemCode::BodyTooLarge => {
+            // What was read up to the limit is freed by now; see memory.rs.
+            super::memory::give_back_freed_memory();
+            Err(refused)
+        }
         Ok(upload) => upload,
         Err(_) => {
             app.metrics.reject("slow_upload");
@@ -266,33 +271,63 @@ async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Prob
     }
 }
 
-/// The 503 for a request refused before its body was read, and the body left unread: refusing
-/// must cost next to nothing, or under overload the refusals (reading and throwing away every
-/// refused upload) take the CPU the accepted requests need. Measured with the load test at four
-/// times capacity: reading refused bodies left 21% of capacity for accepted requests.
-///
-/// Closing at once would make the client's kernel answer its unsent body with a reset, which can
-/// reach the client before it reads the 503: reqwest then reported an error sending the request
-/// for 184 of 2,923 refusals. So the answer says `Connection: close` and the connection lingers
-/// for [`LINGER`] after the 503 is sent, unread: the client reads its whole 503 meanwhile (HTTP
-/// clients read while they send), its unsent bytes wait in kernel buffers at no cost to anyone,
-/// and then the connection closes. A client waiting for `100 Continue` has sent no body, and is
-/// answered and closed at once.
-fn shed_unread(app: &App, request: &Request) -> Response {
+/// The 503 for a request refused before its body was read. While the drain budget lasts
+/// ([`super::budget`]), the body is read and thrown away (within the read timeout) and the
+/// connection stays usable: a burst of refusals gets clean 503s. Beyond it the body is left
+/// unread, so that under a flood refusing costs next to nothing (reading every refused upload
+/// left a fifth of the capacity for accepted requests at four times the capacity): the answer
+/// says `Connection: close`, and the connection lingers for [`LINGER`] after the 503 is sent,
+/// unread, so that the client can read its 503 before the close, then closes. A client whose
+/// body does not fit in the socket buffers may still see its write fail; it is being refused
+/// either way. A client waiting for `100 Continue` has sent no body, and is answered at once.
+async fn shed_unread(app: &App, request: Request) -> Response {
+    use http_body_util::BodyExt;
     app.metrics.reject("overloaded");
-    let waits_for_continue = request
-        .headers()
+    let headers = request.headers();
+    let waits_for_continue = headers
         .get(header::EXPECT)
         .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
-    let mut response = Problem::overloaded().into_response();
-    if !waits_for_continue {
-        let (parts, body) = response.into_parts();
-        response = Response::from_parts(parts, Body::new(LingeringBody::new(body, LINGER)));
+    let declared_length = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    let response = Problem::overloaded().into_response();
+    if waits_for_continue {
+        return response;
     }
+    let limit = app.config.body_limit;
+    let affordable = declared_length.is_some_and(|n| n <= limit as u64 && app.drain_budget.take(n));
+    if affordable {
+        let mut body = request.into_body();
+        let drain = async { while let Some(Ok(_)) = body.frame().await {} };
+        let _ = tokio::time::timeout(app.config.read_timeout, drain).await;
+        return response;
+    }
+    closing_after_linger(response)
+}
+
+/// `response`, for a request whose body is left partly unread: with `Connection: close`, the
+/// connection kept open for [`LINGER`] after the answer so that the client can read it before
+/// the close (a close with unread bytes is a reset, which can overtake the answer).
+fn closing_after_linger(response: Response) -> Response {
+    let (parts, body) = response.into_parts();
+    let mut response = Response::from_parts(parts, Body::new(LingeringBody::new(body, LINGER)));
     response
         .headers_mut()
         .insert(header::CONNECTION, HeaderValue::from_static("close"));
     response
+}
+
+/// The upload, or the answer when it cannot be had: a body over the limit is answered while
+/// the client may still be sending it.
+async fn upload_or_answer(app: &App, request: Request) -> Result<Upload, Response> {
+    match read_upload_in_time(app, request).await {
+        Ok(upload) => Ok(upload),
+        Err(problem) if problem.code == ProblemCode::BodyTooLarge => {
+            Err(closing_after_linger(problem.into_response()))
+        }
+        Err(problem) => Err(problem.into_response()),
+    }
 }
 
 /// How long a refused request's connection stays open, unread, after its 503.
@@ -456,11 +491,14 @@ pub async fn tangents(
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
     let multipart = wants_multipart(request.headers());
-    let (request, Admitted { permit, place }) = match admit(&app, request) {
+    let (request, Admitted { permit, place }) = match admit(&app, request).await {
         Ok(admitted) => admitted,
         Err(refused) => return Ok(*refused),
     };
-    let upload = read_upload_in_time(&app, request).await?;
+    let upload = match upload_or_answer(&app, request).await {
+        Ok(upload) => upload,
+        Err(answer) => return Ok(answer),
+    };
     let processed = run(&app, place, upload, scene_options(&app, &query, true)).await?;
     let bytes = processed.bytes.unwrap_or_default();
     let scene_type = match query.format {
@@ -522,11 +560,14 @@ pub async fn analyze(
     request: Request,
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
-    let (request, Admitted { permit, place }) = match admit(&app, request) {
+    let (request, Admitted { permit, place }) = match admit(&app, request).await {
         Ok(admitted) => admitted,
         Err(refused) => return Ok(*refused),
     };
-    let upload = read_upload_in_time(&app, request).await?;
+    let upload = match upload_or_answer(&app, request).await {
+        Ok(upload) => upload,
+        Err(answer) => return Ok(answer),
+    };
     let processed = run(&app, place, upload, scene_options(&app, &query, false)).await?;
     let report = processed.report.to_json_pretty();
     let mut response = Response::new(Body::new(HeldBody::new(report, permit)));
