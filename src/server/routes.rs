@@ -130,21 +130,26 @@ fn too_large(limit: usize) -> Problem {
 }
 
 /// The problem for a body that could not be read whole: over the limit, or (compressed) not
-/// decodable. Anything else is the connection's failure, which the client will not hear about.
-fn unreadable(error: &(dyn std::error::Error + 'static), limit: usize) -> Problem {
+/// decodable; `otherwise` for anything else.
+fn unreadable(
+    error: &(dyn std::error::Error + 'static),
+    limit: usize,
+    otherwise: Problem,
+) -> Problem {
     match encoding::body_failure(error) {
         BodyFailure::Undecodable(detail) => Problem::new(ProblemCode::MalformedEncoding, detail),
-        BodyFailure::TooLarge | BodyFailure::Other => too_large(limit),
+        BodyFailure::TooLarge => too_large(limit),
+        BodyFailure::Other => otherwise,
     }
 }
 
 fn multipart_problem(error: &MultipartError, limit: usize) -> Problem {
-    match encoding::body_failure(error) {
-        BodyFailure::Undecodable(detail) => Problem::new(ProblemCode::MalformedEncoding, detail),
-        BodyFailure::TooLarge => too_large(limit),
-        BodyFailure::Other if error.status() == StatusCode::PAYLOAD_TOO_LARGE => too_large(limit),
-        BodyFailure::Other => Problem::new(ProblemCode::MalformedMultipart, error.body_text()),
-    }
+    let otherwise = if error.status() == StatusCode::PAYLOAD_TOO_LARGE {
+        too_large(limit)
+    } else {
+        Problem::new(ProblemCode::MalformedMultipart, error.body_text())
+    };
+    unreadable(error, limit, otherwise)
 }
 
 async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
@@ -212,7 +217,8 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
     }
     let body = axum::body::to_bytes(request.into_body(), limit)
         .await
-        .map_err(|e| unreadable(&e, limit))?;
+        // A broken connection too: its client will not hear the answer.
+        .map_err(|e| unreadable(&e, limit, too_large(limit)))?;
     if body.is_empty() {
         return Err(Problem::new(
             ProblemCode::MissingFile,
@@ -318,15 +324,17 @@ fn closing_after_linger(response: Response) -> Response {
     response
 }
 
-/// The upload, or the answer when it cannot be had: a body over the limit is answered while
-/// the client may still be sending it.
-async fn upload_or_answer(app: &App, request: Request) -> Result<Upload, Response> {
+/// Admits a scene request and reads its upload, or the answer when either cannot be had: the
+/// 503 of a refusal, or the problem with the body (one over the limit answered while the client
+/// may still be sending it).
+async fn accept(app: &App, request: Request) -> Result<(Upload, Admitted<'_>), Box<Response>> {
+    let (request, admitted) = admit(app, request).await?;
     match read_upload_in_time(app, request).await {
-        Ok(upload) => Ok(upload),
+        Ok(upload) => Ok((upload, admitted)),
         Err(problem) if problem.code == ProblemCode::BodyTooLarge => {
-            Err(closing_after_linger(problem.into_response()))
+            Err(Box::new(closing_after_linger(problem.into_response())))
         }
-        Err(problem) => Err(problem.into_response()),
+        Err(problem) => Err(Box::new(problem.into_response())),
     }
 }
 
@@ -491,13 +499,9 @@ pub async fn tangents(
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
     let multipart = wants_multipart(request.headers());
-    let (request, Admitted { permit, place }) = match admit(&app, request).await {
-        Ok(admitted) => admitted,
-        Err(refused) => return Ok(*refused),
-    };
-    let upload = match upload_or_answer(&app, request).await {
-        Ok(upload) => upload,
-        Err(answer) => return Ok(answer),
+    let (upload, Admitted { permit, place }) = match accept(&app, request).await {
+        Ok(accepted) => accepted,
+        Err(answer) => return Ok(*answer),
     };
     let processed = run(&app, place, upload, scene_options(&app, &query, true)).await?;
     let bytes = processed.bytes.unwrap_or_default();
@@ -560,13 +564,9 @@ pub async fn analyze(
     request: Request,
 ) -> Result<Response, Problem> {
     let query = parse_query(raw.as_deref())?;
-    let (request, Admitted { permit, place }) = match admit(&app, request).await {
-        Ok(admitted) => admitted,
-        Err(refused) => return Ok(*refused),
-    };
-    let upload = match upload_or_answer(&app, request).await {
-        Ok(upload) => upload,
-        Err(answer) => return Ok(answer),
+    let (upload, Admitted { permit, place }) = match accept(&app, request).await {
+        Ok(accepted) => accepted,
+        Err(answer) => return Ok(*answer),
     };
     let processed = run(&app, place, upload, scene_options(&app, &query, false)).await?;
     let report = processed.report.to_json_pretty();
