@@ -16,8 +16,20 @@
 //! The bench fails (exit status 101) when any other status or a connection error comes back,
 //! when the peak RSS passes the stated bound, or when recovery takes longer than the queue takes
 //! to drain plus a second. The load generator shares the machine's cores with the server, in
-//! every phase alike, so capacity is "with this generator on this machine". Results go to
-//! `bench-results/load.csv` (phases) and `bench-results/load-rss.csv` (RSS over time).
+//! every phase alike, so capacity is "with this generator on this machine"; each row says how
+//! many cores went to the server's workers, to the rest of the server and to the generator.
+//! Results go to `bench-results/load.csv` (phases) and `bench-results/load-rss.csv` (RSS over
+//! time).
+//!
+//! The generator uploads as curl does (`Expect: 100-continue` for bodies over 1 MiB, so that a
+//! refused request's body is never sent), or with `TSPACE_LOAD_CLIENT=reqwest` as hyper's client
+//! does (every body sent, the answer read afterwards). Measured with perf on this 2-core
+//! machine, the second spends the cores on pushing refused bodies into loopback sockets: at
+//! four times the capacity the generator took more CPU than the server's workers, and goodput
+//! fell to 67–71% while the server itself stayed within its bounds.
+
+#[path = "support/expecting.rs"]
+mod expecting;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -65,8 +77,8 @@ struct Phase {
     /// Any other status, or a failed connection: each is a failure of the test.
     unexpected: Vec<String>,
     seconds: f64,
-    /// The server process's CPU time (user + system) during the phase.
-    server_cpu: Duration,
+    /// CPU time (user + system) used during the phase.
+    cpu: CpuUse,
 }
 
 impl Phase {
@@ -88,21 +100,73 @@ impl Phase {
         let [p50, p90, p99, max] = [0.5, 0.9, 0.99, 1.0].map(|p| ms(percentile(&self.accepted, p)));
         // The server's CPU per answered request: what a refusal costs shows as the difference
         // between the overload and the capacity rows.
-        let cpu = ms(self.server_cpu) / total.max(1) as f64;
+        let cpu = ms(self.cpu.workers + self.cpu.io) / total.max(1) as f64;
+        // Cores busy on average: where the machine's time went.
+        let cores = |d: Duration| d.as_secs_f64() / self.seconds;
+        let (workers, io, generator) = (
+            cores(self.cpu.workers),
+            cores(self.cpu.io),
+            cores(self.cpu.generator),
+        );
         println!(
             "{name:>9} {offered:>9.1} {total:>8} {ok:>7} {shed:>6} {closed:>6} {unexpected:>6} \
-             {goodput:>9.1} {p50:>8.2} {p90:>8.2} {p99:>8.2} {max:>8.2} {cpu:>8.2}"
+             {goodput:>9.1} {p50:>8.2} {p90:>8.2} {p99:>8.2} {max:>8.2} {cpu:>8.2} \
+             {workers:>5.2}/{io:.2}/{generator:.2}"
         );
         format!(
             "{name},{offered:.1},{total},{ok},{shed},{closed},{unexpected},{goodput:.1},{p50:.2},\
-             {p90:.2},{p99:.2},{max:.2},{cpu:.2}"
+             {p90:.2},{p99:.2},{max:.2},{cpu:.2},{workers:.2},{io:.2},{generator:.2}"
         )
     }
 }
 
-/// One request; its status (0 for a connection error) and latency.
-async fn request(http: &reqwest::Client, url: &str, body: bytes::Bytes) -> (u16, Duration, String) {
-    let started = Instant::now();
+/// How the generator uploads: like curl (`Expect: 100-continue` for bodies over 1 MiB, so a
+/// refused request's body is never sent) or like hyper's client (reqwest), which sends every body
+/// and reads the answer afterwards. `TSPACE_LOAD_CLIENT=curl|reqwest` (default curl, the client
+/// the documentation shows).
+#[derive(Clone)]
+enum Sender {
+    Curl(expecting::Client),
+    Reqwest(reqwest::Client),
+}
+
+impl Sender {
+    fn new(kind: &str, addr: std::net::SocketAddr) -> Self {
+        match kind {
+            "reqwest" => Sender::Reqwest(
+                reqwest::Client::builder()
+                    .pool_max_idle_per_host(256)
+                    .build()
+                    .expect("a client"),
+            ),
+            _ => Sender::Curl(expecting::Client::new(addr)),
+        }
+    }
+
+    /// One request; its status (0 for a connection error) and latency.
+    async fn send(&self, url: &str, body: bytes::Bytes) -> (u16, Duration, String) {
+        let started = Instant::now();
+        match self {
+            Sender::Curl(client) => {
+                let path = url.find("/v1").map_or(url, |at| &url[at..]);
+                match client.post(path, &body).await {
+                    expecting::Outcome::Status(status) => {
+                        (status, started.elapsed(), String::new())
+                    }
+                    expecting::Outcome::Failed(e) => (0, started.elapsed(), e),
+                }
+            }
+            Sender::Reqwest(http) => request(http, url, body, started).await,
+        }
+    }
+}
+
+async fn request(
+    http: &reqwest::Client,
+    url: &str,
+    body: bytes::Bytes,
+    started: Instant,
+) -> (u16, Duration, String) {
     match http
         .post(url)
         .header("content-type", "model/gltf-binary")
@@ -131,10 +195,48 @@ async fn request(http: &reqwest::Client, url: &str, body: bytes::Bytes) -> (u16,
     }
 }
 
-/// The CPU time (user + system) process `pid` has used, from /proc (in clock ticks of 10 ms,
-/// Linux's `USER_HZ` on every platform it runs on).
-fn cpu_time(pid: u32) -> Duration {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+/// CPU time (user + system) used: by the server's workers (the tangent work), by the rest of
+/// the server (its async threads: connections, bodies, answers), and by this generator.
+#[derive(Default, Clone, Copy)]
+struct CpuUse {
+    workers: Duration,
+    io: Duration,
+    generator: Duration,
+}
+
+impl CpuUse {
+    fn now(server: u32) -> Self {
+        let mut usage = CpuUse {
+            generator: cpu_time(Path::new("/proc/self/stat")),
+            ..CpuUse::default()
+        };
+        let tasks = std::fs::read_dir(format!("/proc/{server}/task"));
+        for task in tasks.into_iter().flatten().flatten() {
+            let name = std::fs::read_to_string(task.path().join("comm")).unwrap_or_default();
+            let used = cpu_time(&task.path().join("stat"));
+            if name.starts_with("tspace-worker") {
+                usage.workers += used;
+            } else {
+                usage.io += used;
+            }
+        }
+        usage
+    }
+
+    fn since(self, earlier: CpuUse) -> CpuUse {
+        CpuUse {
+            workers: self.workers.saturating_sub(earlier.workers),
+            io: self.io.saturating_sub(earlier.io),
+            generator: self.generator.saturating_sub(earlier.generator),
+        }
+    }
+}
+
+/// The CPU time (user + system) in a /proc `stat` file, of a process or a thread (in clock ticks
+/// of 10 ms, Linux's `USER_HZ` on every platform it runs on). A thread that has exited since
+/// the phase began takes its time with it, so the server's figure may be a little low.
+fn cpu_time(stat: &Path) -> Duration {
+    let stat = std::fs::read_to_string(stat).unwrap_or_default();
     // Fields after the command name, which is in parentheses and may hold spaces.
     let fields: Vec<&str> = stat
         .rsplit_once(')')
@@ -162,16 +264,21 @@ fn record(phase: &mut Phase, (status, latency, error): (u16, Duration, String)) 
 }
 
 /// `clients` clients, each sending its next request when the last is answered, for `seconds`.
-async fn closed_loop(url: &str, body: &bytes::Bytes, clients: usize, seconds: f64) -> Phase {
+async fn closed_loop(
+    sender: &Sender,
+    url: &str,
+    body: &bytes::Bytes,
+    clients: usize,
+    seconds: f64,
+) -> Phase {
     let deadline = Instant::now() + Duration::from_secs_f64(seconds);
     let tasks: Vec<_> = (0..clients)
         .map(|_| {
-            let (url, body) = (url.to_owned(), body.clone());
+            let (sender, url, body) = (sender.clone(), url.to_owned(), body.clone());
             tokio::spawn(async move {
-                let http = reqwest::Client::new();
                 let mut phase = Phase::default();
                 while Instant::now() < deadline {
-                    record(&mut phase, request(&http, &url, body.clone()).await);
+                    record(&mut phase, sender.send(&url, body.clone()).await);
                 }
                 phase
             })
@@ -188,16 +295,13 @@ async fn closed_loop(url: &str, body: &bytes::Bytes, clients: usize, seconds: f6
 
 /// Requests started every `1 / rate` s for `seconds`, whether or not earlier ones were answered.
 async fn open_loop(
+    sender: &Sender,
     url: &str,
     body: &bytes::Bytes,
     rate: f64,
     seconds: f64,
     limit: usize,
 ) -> (Phase, usize) {
-    let http = reqwest::Client::builder()
-        .pool_max_idle_per_host(256)
-        .build()
-        .expect("a client");
     let outstanding = Arc::new(AtomicUsize::new(0));
     // A generator that cannot keep up would understate the load: count the arrivals it skipped.
     let mut skipped = 0;
@@ -212,14 +316,14 @@ async fn open_loop(
             continue;
         }
         outstanding.fetch_add(1, Ordering::Relaxed);
-        let (http, url, body, outstanding) = (
-            http.clone(),
+        let (sender, url, body, outstanding) = (
+            sender.clone(),
             url.to_owned(),
             body.clone(),
             Arc::clone(&outstanding),
         );
         tasks.push(tokio::spawn(async move {
-            let result = request(&http, &url, body).await;
+            let result = sender.send(&url, body).await;
             outstanding.fetch_sub(1, Ordering::Relaxed);
             result
         }));
@@ -237,8 +341,9 @@ fn main() {
     let seconds = env_number("TSPACE_LOAD_SECONDS", 60.0);
     let factor = env_number("TSPACE_LOAD_FACTOR", 2.0);
     let outstanding_limit = env_number("TSPACE_LOAD_OUTSTANDING", 1024.0) as usize;
+    let client = std::env::var("TSPACE_LOAD_CLIENT").unwrap_or_else(|_| "curl".into());
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let queue = 16;
+    let queue = env_number("TSPACE_LOAD_QUEUE", 16.0) as usize;
     let in_flight = 2 * (cores + queue);
     let server = ServerProcess::start(
         env!("CARGO_BIN_EXE_tspace"),
@@ -246,9 +351,10 @@ fn main() {
     );
     let idle_rss = server.memory("VmRSS");
     let url = format!("http://{}/v1/tangents", server.addr);
+    let addr: std::net::SocketAddr = server.addr.parse().expect("the server's address");
     let body = bytes::Bytes::from(bytes.clone());
     println!(
-        "scene: {name}, {} bytes; server: {cores} workers, queue {queue}, in flight {in_flight}; idle RSS {} MB",
+        "scene: {name}, {} bytes; server: {cores} workers, queue {queue}, in flight {in_flight}; idle RSS {} MB; client: {client}",
         bytes.len(),
         idle_rss >> 20
     );
@@ -281,10 +387,10 @@ fn main() {
     };
 
     let mut csv = String::from(
-        "phase,offered_per_s,requests,ok,shed,closed,unexpected,ok_per_s,p50_ms,p90_ms,p99_ms,max_ms,server_cpu_ms_per_request\n",
+        "phase,offered_per_s,requests,ok,shed,closed,unexpected,ok_per_s,p50_ms,p90_ms,p99_ms,max_ms,server_cpu_ms_per_request,cores_workers,cores_server_io,cores_generator\n",
     );
     println!(
-        "{:>9} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8}",
+        "{:>9} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>15}",
         "phase",
         "offered/s",
         "requests",
@@ -297,19 +403,21 @@ fn main() {
         "p90 ms",
         "p99 ms",
         "max ms",
-        "cpu ms"
+        "cpu ms",
+        "cores w/io/gen"
     );
     let mut failures = Vec::new();
     let (capacity, overload_p99, recovery) = runtime.block_on(async {
+        let sender = Sender::new(&client, addr);
         let pid = server.pid();
-        let cpu_before = cpu_time(pid);
-        let mut baseline = closed_loop(&url, &body, 1, 3.0).await;
-        baseline.server_cpu = cpu_time(pid) - cpu_before;
+        let cpu_before = CpuUse::now(pid);
+        let mut baseline = closed_loop(&sender, &url, &body, 1, 3.0).await;
+        baseline.cpu = CpuUse::now(pid).since(cpu_before);
         csv.push_str(&baseline.row("baseline", 0.0));
         csv.push('\n');
-        let cpu_before = cpu_time(pid);
-        let mut saturated = closed_loop(&url, &body, 2 * cores, 10.0).await;
-        saturated.server_cpu = cpu_time(pid) - cpu_before;
+        let cpu_before = CpuUse::now(pid);
+        let mut saturated = closed_loop(&sender, &url, &body, 2 * cores, 15.0).await;
+        saturated.cpu = CpuUse::now(pid).since(cpu_before);
         let capacity = saturated.accepted.len() as f64 / saturated.seconds;
         csv.push_str(&saturated.row("capacity", 0.0));
         csv.push('\n');
@@ -317,9 +425,9 @@ fn main() {
         let rate = factor * capacity;
         let rss_before = server.memory("VmRSS");
         let logged_before = server.logs().len();
-        let cpu_before = cpu_time(pid);
-        let (mut overload, skipped) = open_loop(&url, &body, rate, seconds, outstanding_limit).await;
-        overload.server_cpu = cpu_time(pid) - cpu_before;
+        let cpu_before = CpuUse::now(pid);
+        let (mut overload, skipped) = open_loop(&sender, &url, &body, rate, seconds, outstanding_limit).await;
+        overload.cpu = CpuUse::now(pid).since(cpu_before);
         let mut served: Vec<u64> = server.logs()[logged_before..]
             .iter()
             .filter(|l| l.contains("status=200"))
@@ -351,12 +459,12 @@ fn main() {
 
         // Recovery: one client from the moment arrivals stop (the last open-loop answers are in,
         // so the queue is already empty or draining).
-        let http = reqwest::Client::new();
+        let sender = Sender::new(&client, addr);
         let mut first_ok = None;
         let mut recovered = Phase::default();
         let recovery_started = Instant::now();
         while recovery_started.elapsed() < Duration::from_secs(5) {
-            let outcome = request(&http, &url, body.clone()).await;
+            let outcome = sender.send(&url, body.clone()).await;
             if outcome.0 == 200 && first_ok.is_none() {
                 first_ok = Some(load_stopped.elapsed());
             }
