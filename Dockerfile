@@ -11,12 +11,14 @@ RUN apt-get update \
 WORKDIR /src
 
 # The workspace as it is (manifests, the root package and crates/; benches/ because the root
-# manifest names its benches), so there is no hand-made stub to drift from the manifests.
+# manifest names its benches; assets/ for the font built into the binary), so there is no
+# hand-made stub to drift from the manifests.
 # Dependencies are kept between builds in cache mounts rather than in a stub layer: a change to
 # the sources rebuilds only the workspace's own crates.
 COPY Cargo.toml Cargo.lock ./
 COPY crates ./crates
 COPY benches ./benches
+COPY assets ./assets
 COPY src ./src
 # The image's binary carries no debug information or symbols: about 18 MB, where the release
 # profile's, with its line tables, is about 90 MB (measured 2026-11-24).
@@ -32,6 +34,8 @@ RUN groupadd --system --gid 10001 tspace \
     && useradd --system --uid 10001 --gid tspace --no-create-home --home-dir /nonexistent \
         --shell /usr/sbin/nologin tspace
 COPY --from=build /usr/local/bin/tspace /usr/local/bin/tspace
+# The binary carries a subset of DejaVu Sans (for the UV-layout PNGs); its licence goes with it.
+COPY assets/fonts/DejaVuSans-LICENSE /usr/share/doc/tspace/DejaVuSans-LICENSE
 WORKDIR /data
 USER 10001:10001
 ENV TSPACE_ADDR=0.0.0.0:8080

@@ -1152,3 +1152,55 @@ fn normals_flag_chooses_an_objs_generated_normals() {
     assert_eq!(code(&out), 2, "{}", stderr(&out));
     assert!(stderr(&out).contains("from 0 to 180"), "{}", stderr(&out));
 }
+
+#[test]
+fn uv_layout_writes_an_svg_beside_the_input_or_a_png_where_told() {
+    let dir = TempDir::new("uv-layout");
+    let scene = dir.copy_fixture("NormalTangentMirrorTest", "mirror");
+    let input = scene.join("NormalTangentMirrorTest.gltf");
+    let input = input.to_str().unwrap();
+    let out = tspace(dir.path(), &["uv-layout", input]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let svg = std::fs::read_to_string(scene.join("NormalTangentMirrorTest.uv.svg")).unwrap();
+    assert!(svg.contains("mirrored UVs: "), "{svg}");
+    assert!(stderr(&out).contains("NormalTangentMirrorTest.uv.svg"));
+
+    let png = dir.path().join("layout.png");
+    let out = tspace(
+        dir.path(),
+        &["uv-layout", input, "-o", png.to_str().unwrap(), "-q"],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    assert!(stderr(&out).is_empty(), "{}", stderr(&out));
+    assert!(
+        std::fs::read(&png)
+            .unwrap()
+            .starts_with(b"\x89PNG\r\n\x1a\n")
+    );
+
+    // Standard output, the format named.
+    let out = tspace(
+        dir.path(),
+        &["uv-layout", input, "-o", "-", "--format", "svg"],
+    );
+    assert_eq!(code(&out), 0);
+    assert!(out.stdout.starts_with(b"<svg "));
+
+    // Usage errors: one line, exit 2.
+    let out = tspace(
+        dir.path(),
+        &["uv-layout", input, "-o", "x.png", "--format", "svg"],
+    );
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+    assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
+    let out = tspace(dir.path(), &["uv-layout", input, "--primitive", "0"]);
+    assert_eq!(code(&out), 2, "{}", stderr(&out));
+
+    // Nothing to draw where asked: exit 3 and one line naming what there is.
+    let out = tspace(dir.path(), &["uv-layout", input, "--mesh", "9", "-o", "-"]);
+    assert_eq!(code(&out), 3, "{}", stderr(&out));
+    let line = stderr(&out);
+    assert_eq!(line.lines().count(), 1, "{line}");
+    assert!(line.contains("(nothing-to-draw)"), "{line}");
+    assert!(line.contains("meshes[0].primitives[0]"), "{line}");
+}

@@ -379,12 +379,16 @@ async fn uploads_beyond_the_bound_are_refused_before_they_are_buffered() {
         .write_all(b"POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/obj\r\nContent-Length: 100000\r\nExpect: 100-continue\r\n\r\n")
         .await
         .unwrap();
-    let mut head = vec![0u8; 12];
-    tokio::time::timeout(Duration::from_secs(5), polite.read_exact(&mut head))
+    // The whole answer, then the close: a body announced and never sent ends the connection.
+    let mut answer = Vec::new();
+    tokio::time::timeout(Duration::from_secs(5), polite.read_to_end(&mut answer))
         .await
         .unwrap()
         .unwrap();
-    assert_eq!(&head, b"HTTP/1.1 503", "{}", String::from_utf8_lossy(&head));
+    let answer = String::from_utf8_lossy(&answer).to_lowercase();
+    assert!(answer.starts_with("http/1.1 503"), "{answer}");
+    assert!(answer.contains("\r\nconnection: close\r\n"), "{answer}");
+    assert!(answer.ends_with("\"overloaded\"}"), "{answer}");
     // The slow client times out and frees the slot; uploads are taken again.
     let mut answer = Vec::new();
     let _ = tokio::time::timeout(Duration::from_secs(5), slow.read_to_end(&mut answer)).await;
@@ -1193,5 +1197,104 @@ async fn a_timed_out_or_abandoned_scene_frees_its_worker() {
         "the client left; the worker was free {} ms later",
         (gone.elapsed().max(freed)).as_millis()
     );
+    running.shutdown().await.unwrap();
+}
+
+/// `/v1/uv-layout`: the picture of NormalTangentMirrorTest (a .gltf and its .bin as parts),
+/// whose legend gives the counts `/v1/analyze` gives; PNG on request; one primitive chosen;
+/// problems for what cannot be drawn.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn uv_layout_pictures_agree_with_the_report() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let http = client();
+    let form = || {
+        Form::new()
+            .part(
+                "file",
+                Part::bytes(fixture(
+                    "NormalTangentMirrorTest/NormalTangentMirrorTest.gltf",
+                ))
+                .file_name("NormalTangentMirrorTest.gltf"),
+            )
+            .part(
+                "bin",
+                Part::bytes(fixture(
+                    "NormalTangentMirrorTest/NormalTangentMirrorTest.bin",
+                ))
+                .file_name("NormalTangentMirrorTest.bin"),
+            )
+    };
+    let post = |path: String| http.post(format!("{base}{path}")).multipart(form()).send();
+    let report: Value = post("/v1/analyze?overwrite=true".into())
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let diagnostics = &report["primitives"][0]["diagnostics"];
+    let triangles = diagnostics["triangles"].as_u64().unwrap();
+    let mirrored = diagnostics["mirrored_uv_triangles"]["count"]
+        .as_u64()
+        .unwrap();
+    assert!(
+        mirrored > 0,
+        "the fixture mirrors half its UVs: {diagnostics}"
+    );
+
+    let response = post("/v1/uv-layout?overwrite=true".into()).await.unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "image/svg+xml");
+    let svg = response.text().await.unwrap();
+    assert!(svg.starts_with("<svg xmlns=\"http://www.w3.org/2000/svg\""));
+    assert!(
+        svg.contains("NormalTangentMirrorTest.gltf"),
+        "the title names the file"
+    );
+    assert!(svg.contains(&format!("mirrored UVs: {mirrored} triangles")));
+    let ordinary = triangles - mirrored;
+    let with_comma = |n: u64| format!("{},{:03}", n / 1000, n % 1000);
+    assert!(svg.contains(&format!(
+        "ordinary: {} of {} triangles",
+        with_comma(ordinary),
+        with_comma(triangles)
+    )));
+
+    let response = post("/v1/uv-layout?overwrite=true&format=png".into())
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "image/png");
+    let png = response.bytes().await.unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // The width in the IHDR chunk: the panel and its margins.
+    assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 1072);
+
+    let chosen = post("/v1/uv-layout?overwrite=true&mesh=0&primitive=0".into())
+        .await
+        .unwrap();
+    assert_eq!(chosen.status(), 200);
+    let absent = post("/v1/uv-layout?overwrite=true&mesh=7".into())
+        .await
+        .unwrap();
+    let body = problem(absent, 422, "nothing-to-draw").await;
+    assert!(
+        body["detail"]
+            .as_str()
+            .unwrap()
+            .contains("meshes[0].primitives[0]")
+    );
+    let bad = post("/v1/uv-layout?format=gif".into()).await.unwrap();
+    problem(bad, 400, "invalid-option").await;
+    let orphan = post("/v1/uv-layout?primitive=0".into()).await.unwrap();
+    problem(orphan, 400, "invalid-option").await;
+    // A scene with nothing that needs tangents: Box has no normal map.
+    let response = http
+        .post(format!("{base}/v1/uv-layout"))
+        .header("content-type", "model/gltf-binary")
+        .body(fixture("Box/Box.glb"))
+        .send()
+        .await
+        .unwrap();
+    problem(response, 422, "nothing-to-draw").await;
     running.shutdown().await.unwrap();
 }

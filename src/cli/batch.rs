@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 /// The largest file read: a main file, or a buffer, image or MTL file it names.
 const MAX_FILE_BYTES: u64 = 1 << 30;
 
-fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Processed, Failure> {
+pub(super) fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Processed, Failure> {
     if is_dash(path) {
         return stdio::process_stdin(MAX_FILE_BYTES, options);
     }
@@ -76,7 +76,7 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 }
 
 /// Writes one output: to standard output for `-`, else to its file.
-fn write_output(output: &Path, bytes: &[u8]) -> Result<(), Failure> {
+pub(super) fn write_output(output: &Path, bytes: &[u8]) -> Result<(), Failure> {
     let written = if is_dash(output) {
         stdio::write_stdout(bytes)
     } else {

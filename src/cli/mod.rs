@@ -8,6 +8,7 @@ mod batch;
 mod health;
 mod outcome;
 mod paths;
+mod picture;
 mod progress;
 mod stdio;
 mod tally;
@@ -15,6 +16,7 @@ mod tally;
 use crate::config::ServeArgs;
 use crate::scene::options::Choices;
 use crate::scene::options::{Compression, parse_angle};
+use crate::scene::pictures::PictureFormat;
 use crate::scene::{Normals, OutputFormat, SceneOptions, TangentType};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, CommandFactory, Parser, Subcommand, ValueEnum};
@@ -62,6 +64,9 @@ enum Command {
     /// Print the JSON report of scene files without writing anything.
     #[command(after_long_help = ANALYZE_HELP)]
     Analyze(AnalyzeArgs),
+    /// Draw a scene's texture layout (UV space) as an SVG or a PNG, problems marked.
+    #[command(name = "uv-layout", after_long_help = UV_LAYOUT_HELP)]
+    UvLayout(UvLayoutArgs),
     /// GET /healthz on a running service; exit 0 when it answers 2xx, else 1 (for containers).
     Healthcheck(health::HealthArgs),
     /// Print a shell completion script on stdout.
@@ -98,6 +103,19 @@ const ANALYZE_HELP: &str = concat!(
 One input file (or - for standard input) prints its report. Several files, or a directory
 (searched as `process` searches one), print a JSON array of {input, report} and
 {input, error: {code, message}}, the --report document of `process`.
+
+",
+    exit_codes!()
+);
+
+const UV_LAYOUT_HELP: &str = concat!(
+    "\
+Draws, in texture space, every primitive that gets tangents (with --mesh and --primitive, the
+chosen ones; with --all, every triangle primitive with UVs): the UV set the tangents follow,
+the 0-1 square and any tiles beyond it, triangles filled by what tspace found (mirrored,
+zero UV area, degenerate), repaired tangents outlined, handedness flips dotted, and a legend
+whose counts are the report's. Without -o the picture is written beside the input as
+<stem>.uv.svg (or .uv.png with --format png).
 
 ",
     exit_codes!()
@@ -237,6 +255,34 @@ struct AnalyzeArgs {
 }
 
 #[derive(Debug, Args)]
+struct UvLayoutArgs {
+    /// The scene file (.glb, .gltf, .obj), or - for standard input.
+    #[arg(value_name = "IN")]
+    input: PathBuf,
+    /// The picture file (.svg or .png), or - for standard output.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    output: Option<PathBuf>,
+    /// svg or png [default: the output's extension, else svg].
+    #[arg(long, value_parser = parse_picture_format)]
+    format: Option<PictureFormat>,
+    /// Draw only this mesh: its index in meshes, or its name.
+    #[arg(long, value_name = "MESH")]
+    mesh: Option<String>,
+    /// With --mesh: draw only this primitive of it (its index).
+    #[arg(long, value_name = "INDEX", requires = "mesh")]
+    primitive: Option<String>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// No line naming the file written.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn parse_picture_format(value: &str) -> Result<PictureFormat, String> {
+    value.parse()
+}
+
+#[derive(Debug, Args)]
 struct CompletionsArgs {
     /// The shell to complete for.
     #[arg(value_enum)]
@@ -313,6 +359,7 @@ pub fn main() -> ExitCode {
         },
         Command::Process(args) => outcome::guarded_command(|| batch::process(args)).into(),
         Command::Analyze(args) => outcome::guarded_command(|| batch::analyze(args)).into(),
+        Command::UvLayout(args) => outcome::guarded_command(|| picture::uv_layout(args)).into(),
         Command::Healthcheck(args) => health::run(&args).into(),
         Command::Completions(args) => print_completions(args.shell).into(),
     }

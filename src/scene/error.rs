@@ -97,6 +97,7 @@ problem_codes! {
     RefusedUri => "refused-uri", Unprocessable, 422, "A URI in the scene is refused";
     UnsupportedVersion => "unsupported-version", Unprocessable, 422, "The glTF version is not supported";
     ObjNotConvertible => "obj-not-convertible", Unprocessable, 422, "The OBJ cannot be converted to glTF";
+    NothingToDraw => "nothing-to-draw", Unprocessable, 422, "The scene has no geometry to draw as asked";
     InternalEdit => "internal-edit", Internal, 500, "tspace could not edit the document";
     Internal => "internal", Internal, 500, "An internal error occurred";
     Overloaded => "overloaded", Busy, 503, "The server is busy; retry shortly";

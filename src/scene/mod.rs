@@ -10,9 +10,11 @@ pub mod error;
 pub mod folder;
 pub mod gltf;
 pub mod input;
+pub mod layout;
 pub mod obj;
 pub mod obj_gltf;
 pub mod options;
+pub mod pictures;
 pub mod report;
 pub mod uri;
 

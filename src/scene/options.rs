@@ -225,6 +225,9 @@ pub struct SceneOptions {
     /// client that went away): the work stops between steps and inside the core, and the
     /// scene fails with a `timeout` error nobody reads.
     pub cancel: Cancel,
+    /// Keep what a UV-layout picture draws ([`Processed::layouts`]); off unless a picture is
+    /// asked for, since it holds a copy of the UVs and indices.
+    pub layouts: bool,
 }
 
 impl Default for SceneOptions {
@@ -242,6 +245,7 @@ impl Default for SceneOptions {
             compress: Compression::Auto,
             limits: SceneLimits::default(),
             cancel: Cancel::default(),
+            layouts: false,
         }
     }
 }
@@ -461,6 +465,8 @@ impl SceneOptions {
 pub struct Processed {
     pub bytes: Option<Vec<u8>>,
     pub report: Report,
+    /// With [`SceneOptions::layouts`]: the texture layout of every geometry that was computed.
+    pub layouts: Vec<super::layout::Layout>,
 }
 
 #[cfg(test)]

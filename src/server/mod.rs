@@ -1,8 +1,8 @@
 //! The HTTP service: thin handlers over [`crate::scene::input::process`], errors as problem+json,
 //! mesh work on a bounded pool, metrics, OpenAPI and Swagger UI.
 //!
-//! Routes: `POST /v1/tangents`, `POST /v1/analyze`, `GET /healthz`, `GET /readyz`,
-//! `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
+//! Routes: `POST /v1/tangents`, `POST /v1/analyze`, `POST /v1/uv-layout`, `GET /healthz`,
+//! `GET /readyz`, `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
 
 pub mod budget;
 pub mod encoding;
@@ -166,6 +166,7 @@ pub fn router(app: Arc<App>) -> Router {
     let scenes = Router::new()
         .route("/v1/tangents", axum::routing::post(routes::tangents))
         .route("/v1/analyze", axum::routing::post(routes::analyze))
+        .route("/v1/uv-layout", axum::routing::post(routes::uv_layout))
         .route_layer(middleware::from_fn_with_state(
             Arc::clone(&app),
             require_api_key,

@@ -32,6 +32,7 @@ use utoipa::{IntoParams, Modify, OpenApi, PartialSchema, ToSchema};
     paths(
         routes::tangents,
         routes::analyze,
+        routes::uv_layout,
         routes::healthz,
         routes::readyz,
         routes::metrics,
@@ -167,6 +168,53 @@ impl IntoParams for AnalyzeQuery {
             .filter(|option| !option.output_only)
             .map(query_parameter)
             .collect()
+    }
+}
+
+/// The query parameters `POST /v1/uv-layout` has besides [`AnalyzeQuery`]'s.
+pub struct PictureQuery;
+
+impl IntoParams for PictureQuery {
+    fn into_params(_: impl Fn() -> Option<ParameterIn>) -> Vec<Parameter> {
+        let string = |values: Option<&[&str]>, default: Option<&str>| -> RefOr<Schema> {
+            let mut schema = ObjectBuilder::new().schema_type(Type::String);
+            if let Some(values) = values {
+                schema = schema.enum_values(Some(values.iter().copied()));
+            }
+            if let Some(default) = default {
+                schema = schema.default(Some(default.into()));
+            }
+            schema.into()
+        };
+        let parameter = |name: &str, description: &str, schema: RefOr<Schema>| {
+            ParameterBuilder::new()
+                .name(name)
+                .parameter_in(ParameterIn::Query)
+                .required(Required::False)
+                .description(Some(description))
+                .schema(Some(schema))
+                .build()
+        };
+        vec![
+            parameter(
+                "format",
+                "The picture's format (here it names the picture, not a scene).",
+                string(Some(&["svg", "png"]), Some("svg")),
+            ),
+            parameter(
+                "mesh",
+                "Draw only this mesh's primitives: its index in meshes, or its name.",
+                string(None, None),
+            ),
+            parameter(
+                "primitive",
+                "With mesh: draw only this primitive of it (its index in the mesh's primitives).",
+                ObjectBuilder::new()
+                    .schema_type(Type::Integer)
+                    .minimum(Some(0))
+                    .into(),
+            ),
+        ]
     }
 }
 

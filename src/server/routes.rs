@@ -5,13 +5,14 @@ use super::encoding::{self, BodyFailure};
 use super::held::{HeldBody, LingeringBody};
 use super::mixed;
 use super::openapi::{
-    AnalyzeQuery, ReportAndScene, SceneFile, SceneUpload, TangentsQuery, WrittenScene,
+    AnalyzeQuery, PictureQuery, ReportAndScene, SceneFile, SceneUpload, TangentsQuery, WrittenScene,
 };
 use super::pool::Reservation;
 use super::problem::Problem;
 use super::{App, content_type};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::input::{self, InputKind};
+use crate::scene::pictures;
 use crate::scene::report::Report;
 use crate::scene::uri::{PartSet, percent_decode};
 use crate::scene::{OutputFormat, Processed, SceneLimits, SceneOptions};
@@ -47,6 +48,8 @@ fn parse_query(raw: Option<&str>) -> Result<SceneOptions, Problem> {
 /// The scene and its named parts, as the request carried them.
 struct Upload {
     kind: InputKind,
+    /// The main file's name, when a multipart upload gave one.
+    name: Option<String>,
     main: Bytes,
     parts: Vec<(String, Bytes)>,
 }
@@ -211,6 +214,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
             .collect();
         return Ok(Upload {
             kind,
+            name: file_name,
             main: bytes,
             parts,
         });
@@ -228,6 +232,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
     let kind = kind_of(media.as_deref(), None, &body).map_err(NotAScene::of_body)?;
     Ok(Upload {
         kind,
+        name: None,
         main: body,
         parts: Vec::new(),
     })
@@ -285,7 +290,8 @@ async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Prob
 /// says `Connection: close`, and the connection lingers for [`LINGER`] after the 503 is sent,
 /// unread, so that the client can read its 503 before the close, then closes. A client whose
 /// body does not fit in the socket buffers may still see its write fail; it is being refused
-/// either way. A client waiting for `100 Continue` has sent no body, and is answered at once.
+/// either way. A client waiting for `100 Continue` (curl, for any body over 1 MiB) has sent no
+/// body, and is answered at once: its refusal costs both sides one round trip.
 async fn shed_unread(app: &App, request: Request) -> Response {
     use http_body_util::BodyExt;
     app.metrics.reject("overloaded");
@@ -297,8 +303,13 @@ async fn shed_unread(app: &App, request: Request) -> Response {
         .get(header::CONTENT_LENGTH)
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.parse::<u64>().ok());
-    let response = Problem::overloaded().into_response();
+    let mut response = Problem::overloaded().into_response();
     if waits_for_continue {
+        // Its body will not come: the connection ends with this answer (HTTP says to tell the
+        // client so; hyper closes it either way, the body being unread).
+        response
+            .headers_mut()
+            .insert(header::CONNECTION, HeaderValue::from_static("close"));
         return response;
     }
     let limit = app.config.body_limit;
@@ -360,6 +371,22 @@ async fn run(
     upload: Upload,
     options: SceneOptions,
 ) -> Result<Processed, Problem> {
+    run_then(app, place, upload, options, Ok).await
+}
+
+/// [`run`], then `then` on the worker with what it made (a picture drawn from the scene is
+/// work for the pool too).
+async fn run_then<T, F>(
+    app: &Arc<App>,
+    place: Reservation<'_>,
+    upload: Upload,
+    options: SceneOptions,
+    then: F,
+) -> Result<T, Problem>
+where
+    T: Send + 'static,
+    F: FnOnce(Processed) -> Result<T, Problem> + Send + 'static,
+{
     let _cancel_when_dropped = CancelWhenDropped(options.cancel.clone());
     let metrics_app = Arc::clone(app);
     let job = move || {
@@ -382,21 +409,25 @@ async fn run(
                 return Err(Problem::new(ProblemCode::MalformedMultipart, e.to_string()));
             }
         }
-        let processed = input::process(upload.kind, &upload.main, &parts, &options);
-        if processed.is_err() {
-            cancelled();
-        }
-        processed.map_err(Problem::from)
+        let processed = match input::process(upload.kind, &upload.main, &parts, &options) {
+            Ok(processed) => processed,
+            Err(e) => {
+                cancelled();
+                return Err(Problem::from(e));
+            }
+        };
+        let summary = &processed.report.summary;
+        let counted = (summary.triangles, summary.vertices_added);
+        then(processed).map(|made| (made, counted))
     };
-    let processed = run_job(app, place, job).await??;
-    let summary = &processed.report.summary;
+    let (made, (triangles, vertices_added)) = run_job(app, place, job).await??;
     app.metrics
         .triangles
-        .fetch_add(summary.triangles, Ordering::Relaxed);
+        .fetch_add(triangles, Ordering::Relaxed);
     app.metrics
         .vertices_added
-        .fetch_add(summary.vertices_added, Ordering::Relaxed);
-    Ok(processed)
+        .fetch_add(vertices_added, Ordering::Relaxed);
+    Ok(made)
 }
 
 /// Runs `job` in its place on the worker pool within the request timeout: 504 when the time is
@@ -574,6 +605,112 @@ pub async fn analyze(
     let (name, value) = content_type("application/json");
     response.headers_mut().insert(name, value);
     Ok(response)
+}
+
+/// Draws the texture layout of a scene's geometry.
+///
+/// Every primitive that gets tangents from texture coordinates (or, with `mesh` and `primitive`,
+/// the chosen ones) drawn in UV space: triangles filled by what tspace found in them (mirrored,
+/// zero UV area, degenerate), repaired tangents outlined, handedness flips dotted, with a
+/// legend whose counts are the report's. SVG by default, or PNG.
+#[utoipa::path(
+    post,
+    path = "/v1/uv-layout",
+    tag = "scenes",
+    params(
+        PictureQuery,
+        AnalyzeQuery,
+        ("Content-Encoding" = Option<String>, Header, description = "gzip (or x-gzip) or zstd for a compressed body; it is decoded as it arrives, and the body limit counts decoded bytes. Another coding is 415 unsupported-encoding."),
+    ),
+    request_body(
+        description = "As for /v1/analyze: a GLB, a .gltf or an OBJ as the whole body, or multipart/form-data with the scene and the files it refers to.",
+        content(
+            (inline(SceneFile) = "model/gltf-binary"),
+            (inline(SceneFile) = "model/gltf+json"),
+            (inline(SceneFile) = "model/obj"),
+            (inline(SceneFile) = "application/octet-stream"),
+            (SceneUpload = "multipart/form-data", encoding(
+                ("file" = (content_type = "model/gltf-binary, model/gltf+json, model/obj, application/octet-stream")),
+            )),
+        )
+    ),
+    responses(
+        (status = 200, description = "The picture", content(
+            (inline(SceneFile) = "image/svg+xml"),
+            (inline(SceneFile) = "image/png"),
+        )),
+        // The error responses are added from ProblemCode by ProblemCodes.
+    )
+)]
+pub async fn uv_layout(
+    State(app): State<Arc<App>>,
+    RawQuery(raw): RawQuery,
+    request: Request,
+) -> Result<Response, Problem> {
+    let (scene_query, picture) = parse_picture_query(raw.as_deref())?;
+    let (upload, Admitted { permit, place }) = match accept(&app, request).await {
+        Ok(accepted) => accepted,
+        Err(answer) => return Ok(*answer),
+    };
+    let file = upload
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("upload.{}", upload.kind.name()));
+    let options = SceneOptions {
+        layouts: true,
+        ..scene_options(&app, &scene_query, false)
+    };
+    let format = picture.format;
+    let drawn = run_then(&app, place, upload, options, move |processed| {
+        pictures::draw(
+            &pictures::Subject { file: &file },
+            &processed.layouts,
+            &picture.selection,
+            format,
+        )
+        .map_err(Problem::from)
+    })
+    .await?;
+    let mut response = Response::new(Body::new(HeldBody::new(drawn, permit)));
+    let (name, value) = content_type(format.media_type());
+    response.headers_mut().insert(name, value);
+    Ok(response)
+}
+
+/// What `/v1/uv-layout` takes besides the scene options.
+struct PictureChoice {
+    format: pictures::PictureFormat,
+    selection: pictures::Selection,
+}
+
+/// The scene options and the picture's own (`format`, `mesh`, `primitive`; `format` names the
+/// picture here, not the scene's output).
+fn parse_picture_query(raw: Option<&str>) -> Result<(SceneOptions, PictureChoice), Problem> {
+    let mut scene = Vec::new();
+    let (mut format, mut mesh, mut primitive) = (None, None, None);
+    for pair in raw.unwrap_or("").split('&').filter(|p| !p.is_empty()) {
+        let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
+        let decoded = || {
+            percent_decode(&value.replace('+', " "))
+                .map_err(|e| invalid_option(format!("{key}: {e}")))
+        };
+        match key {
+            "format" => format = Some(decoded()?),
+            "mesh" => mesh = Some(decoded()?),
+            "primitive" => primitive = Some(decoded()?),
+            _ => scene.push(pair),
+        }
+    }
+    let options = parse_query(Some(&scene.join("&")))?;
+    let format = format
+        .as_deref()
+        .map(str::parse::<pictures::PictureFormat>)
+        .transpose()
+        .map_err(|e| invalid_option(format!("format: {e}")))?
+        .unwrap_or_default();
+    let selection = pictures::Selection::parse(mesh.as_deref(), primitive.as_deref())
+        .map_err(invalid_option)?;
+    Ok((options, PictureChoice { format, selection }))
 }
 
 /// Liveness: the process answers.

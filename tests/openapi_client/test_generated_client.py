@@ -14,7 +14,7 @@ from io import BytesIO
 from pathlib import Path
 
 from tspace_client import Client
-from tspace_client.api.scenes import analyze, tangents
+from tspace_client.api.scenes import analyze, tangents, uv_layout
 from tspace_client.api.service import problem_page
 from tspace_client.models import (
     Method,
@@ -23,6 +23,7 @@ from tspace_client.models import (
     ProblemCode,
     Report,
     SceneUpload,
+    UvLayoutFormat,
 )
 from tspace_client.types import File
 
@@ -95,6 +96,21 @@ def test_a_gltf_and_its_buffer_are_analyzed_into_a_typed_report():
     assert findings.error + findings.warning + findings.info == len(report.findings)
     # Analysis writes nothing.
     assert not report.output_format
+
+
+def test_the_uv_layout_comes_back_as_svg_or_png_and_its_options_are_typed():
+    svg = uv_layout.sync_detailed(client=client(), body=avocado_upload())
+    assert svg.status_code == 200, svg.content
+    assert svg.headers["content-type"] == "image/svg+xml"
+    assert isinstance(svg.parsed, File)
+    text = svg.parsed.payload.read().decode()
+    assert text.startswith("<svg ") and "Avocado.gltf" in text, text[:200]
+    png = uv_layout.sync_detailed(
+        client=client(), body=avocado_upload(), format_=UvLayoutFormat.PNG, mesh="0", primitive=0
+    )
+    assert png.status_code == 200, png.content
+    assert png.headers["content-type"] == "image/png"
+    assert png.parsed.payload.read().startswith(b"\x89PNG\r\n\x1a\n")
 
 
 def test_a_gltf_and_its_buffer_come_back_as_one_gltf_with_new_tangents():

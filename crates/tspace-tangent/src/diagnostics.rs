@@ -46,6 +46,9 @@ impl Tally {
 pub struct FallbackCounts {
     /// All replaced corners (corner = position in the index buffer).
     pub corners: Tally,
+    /// Every replaced corner, ascending, where [`FallbackCounts::corners`] keeps the first few:
+    /// what a picture of the mesh marks. One entry per repair, so usually empty.
+    pub all_corners: Vec<u32>,
     /// The method gave the corner no tangent at all (only degenerate or unmapped triangles meet
     /// at its vertex).
     pub unassigned: u64,

@@ -263,6 +263,7 @@ pub(crate) fn repair(mesh: &Mesh<'_>, corners: &mut [[f32; 4]], parallel: bool) 
         .into_iter()
         .fold(FallbackCounts::default(), |mut all, part| {
             all.corners.append(&part.corners);
+            all.all_corners.extend(&part.all_corners);
             all.unassigned += part.unassigned;
             all.zero_length += part.zero_length;
             all.non_finite += part.non_finite;
@@ -274,6 +275,7 @@ pub(crate) fn repair(mesh: &Mesh<'_>, corners: &mut [[f32; 4]], parallel: bool) 
 impl FallbackCounts {
     pub(crate) fn add(&mut self, corner: u32, problem: Problem) {
         self.corners.add(corner);
+        self.all_corners.push(corner);
         match problem {
             Problem::Unassigned => self.unassigned += 1,
             Problem::ZeroLength => self.zero_length += 1,

@@ -82,6 +82,7 @@ pub mod diagnostics;
 mod fallback;
 mod fast;
 mod fill;
+pub mod marks;
 mod math;
 mod mikktspace;
 mod normals;
@@ -92,6 +93,7 @@ mod vectors;
 mod weld;
 
 pub use diagnostics::{Diagnostics, FallbackCounts, Tally};
+pub use marks::{Marks, TriangleMarks, marks};
 pub use normals::{GeneratedNormals, generate_normals};
 pub use split::SplitPlan;
 

@@ -84,6 +84,8 @@ fn scene_options(data: &[u8]) -> SceneOptions {
         normals_angle: 60.0,
         limits: LIMITS,
         cancel: Default::default(),
+        // Sometimes the UV-layout picture too (drawn in check_processed).
+        layouts: h & 0x800 != 0,
     }
 }
 
@@ -99,6 +101,13 @@ fn check_processed(processed: &tspace::scene::Processed) {
         ) {
             panic!("the written scene does not load again: {e:?}");
         }
+    }
+    if !processed.layouts.is_empty() {
+        let svg = tspace::scene::pictures::svg(
+            &tspace::scene::pictures::Subject { file: "fuzz" },
+            &processed.layouts,
+        );
+        assert!(svg.ends_with("</svg>\n"), "the picture is not a whole SVG");
     }
 }
 

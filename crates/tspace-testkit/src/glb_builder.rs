@@ -147,6 +147,26 @@ pub fn grid(n: usize) -> Vec<u8> {
     b.glb(doc)
 }
 
+/// `shape` as a normal-mapped GLB with u32 indices.
+pub fn shape_glb(shape: &crate::shapes::Shape) -> Vec<u8> {
+    let flat3: Vec<f32> = shape.positions.iter().flatten().copied().collect();
+    let normals: Vec<f32> = shape.normals.iter().flatten().copied().collect();
+    let uvs: Vec<f32> = shape.uvs.iter().flatten().copied().collect();
+    let mut b = Builder::default();
+    let position = b.floats(&flat3, "VEC3", true);
+    let normal = b.floats(&normals, "VEC3", false);
+    let uv = b.floats(&uvs, "VEC2", false);
+    let index = b.indices_u32(&shape.indices);
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"name": shape.name, "primitives": [{"attributes": {"POSITION": position,
+            "NORMAL": normal, "TEXCOORD_0": uv}, "indices": index, "material": 0}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    b.glb(doc)
+}
+
 /// A normal-mapped unit quad whose interleaved vertices and indices are compressed by
 /// meshoptimizer and whose file requires EXT_meshopt_compression, as a GLB.
 pub fn meshopt_quad() -> Vec<u8> {

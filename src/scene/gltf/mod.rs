@@ -17,6 +17,7 @@ pub mod sizes;
 pub mod write;
 
 use crate::scene::error::{ProblemCode, SceneError};
+use crate::scene::layout::{Layout, PrimitiveRef};
 use crate::scene::report::{MorphReport, PrimitiveReport, Report, StorageReport, TangentReport};
 use crate::scene::{OutputFormat, Processed, SceneOptions, TangentType};
 use accessor::{Data, DecodedAccessors};
@@ -90,6 +91,10 @@ pub fn process_with<'a>(
     };
     let computed = compute_jobs(root, &jobs.list, data, options)?;
     SceneError::check(cancel)?;
+    let layouts = match options.layouts {
+        true => layouts(&plans, &jobs, &computed, options),
+        false => Vec::new(),
+    };
     let scene = Scene {
         cancel,
         root,
@@ -113,7 +118,64 @@ pub fn process_with<'a>(
     )?;
     report_storage(&mut report, root, bytes.as_deref(), options.format)?;
     report.finish();
-    Ok(Processed { bytes, report })
+    Ok(Processed {
+        bytes,
+        report,
+        layouts,
+    })
+}
+
+/// The texture layout of every job that has texture coordinates (not the axis method's), with
+/// the marks the core's diagnostics count, computed with the same options.
+fn layouts(
+    plans: &[PrimitivePlan],
+    jobs: &Jobs,
+    computed: &[Computed],
+    options: &SceneOptions,
+) -> Vec<Layout> {
+    let mut layouts: Vec<Option<Layout>> = jobs
+        .list
+        .par_iter()
+        .zip(computed)
+        .map(|(job, computed)| {
+            let geometry = &computed.geometry;
+            let uvs = geometry.uvs.clone()?;
+            let core_options = Options {
+                method: job.method,
+                uv_origin: UvOrigin::TopLeft,
+                normal_mode: options.normal_mode,
+                ..Options::default()
+            };
+            let marks = tspace_tangent::marks(&geometry.input(), &core_options, &computed.tangents);
+            Some(Layout {
+                primitives: Vec::new(),
+                texcoord: 0,
+                uvs,
+                indices: geometry.indices.clone(),
+                marks,
+                repaired_corners: computed
+                    .tangents
+                    .diagnostics
+                    .fallback_tangents
+                    .corners
+                    .count,
+            })
+        })
+        .collect();
+    for (plan, job) in plans.iter().zip(&jobs.of_plan) {
+        let Some(Some(layout)) = job.and_then(|j| layouts.get_mut(j)) else {
+            continue;
+        };
+        if layout.primitives.is_empty() {
+            layout.texcoord = plan.texcoord_set;
+        }
+        layout.primitives.push(PrimitiveRef {
+            mesh: plan.mesh,
+            primitive: plan.primitive,
+            mesh_name: plan.mesh_name.clone(),
+        });
+    }
+    layouts.into_iter().flatten().collect()
 }
 
 fn plan_options(options: &SceneOptions, internal: &Internal) -> PlanOptions {
