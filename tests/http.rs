@@ -940,9 +940,16 @@ async fn api_keys_guard_the_scene_routes_only() {
         .await
         .unwrap();
     assert_eq!(analyze.status(), 401);
+    let picture = http
+        .post(format!("{base}/v1/uv-layout"))
+        .body(fixture("Box/Box.glb"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(picture.status(), 401);
     let metrics = metrics_text(&base).await;
     assert!(
-        metrics.contains("tspace_rejections_total{reason=\"unauthorized\"} 4"),
+        metrics.contains("tspace_rejections_total{reason=\"unauthorized\"} 5"),
         "{metrics}"
     );
     for open in [
@@ -951,6 +958,8 @@ async fn api_keys_guard_the_scene_routes_only() {
         "/metrics",
         "/openapi.json",
         "/problems/unauthorized",
+        "/",
+        "/page/page.js",
     ] {
         let response = http.get(format!("{base}{open}")).send().await.unwrap();
         assert_eq!(response.status(), 200, "{open}");
@@ -1296,5 +1305,37 @@ async fn uv_layout_pictures_agree_with_the_report() {
         .await
         .unwrap();
     problem(response, 422, "nothing-to-draw").await;
+    running.shutdown().await.unwrap();
+}
+
+/// The page and its files are served with a policy that lets in nothing but themselves (and the
+/// `blob:` pictures they make), and stay open on a server that requires keys.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_page_is_served_with_its_own_files_only() {
+    let (running, base) = server(ServerConfig::local()).await;
+    let http = client();
+    for (path, media_type, needle) in [
+        (
+            "/",
+            "text/html; charset=utf-8",
+            "<script type=\"module\" src=\"/page/page.js\">",
+        ),
+        (
+            "/page/page.js",
+            "text/javascript; charset=utf-8",
+            "/v1/uv-layout",
+        ),
+        ("/page/page.css", "text/css; charset=utf-8", "#uv-layout"),
+    ] {
+        let response = http.get(format!("{base}{path}")).send().await.unwrap();
+        assert_eq!(response.status(), 200, "{path}");
+        let headers = response.headers();
+        assert_eq!(headers["content-type"], media_type, "{path}");
+        let policy = headers["content-security-policy"].to_str().unwrap();
+        assert!(policy.contains("default-src 'none'"), "{policy}");
+        assert!(policy.contains("script-src 'self'"), "{policy}");
+        assert_eq!(headers["x-content-type-options"], "nosniff");
+        assert!(response.text().await.unwrap().contains(needle), "{path}");
+    }
     running.shutdown().await.unwrap();
 }

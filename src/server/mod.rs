@@ -2,7 +2,8 @@
 //! mesh work on a bounded pool, metrics, OpenAPI and Swagger UI.
 //!
 //! Routes: `POST /v1/tangents`, `POST /v1/analyze`, `POST /v1/uv-layout`, `GET /healthz`,
-//! `GET /readyz`, `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`.
+//! `GET /readyz`, `GET /metrics`, `GET /openapi.json`, `GET /docs`, `GET /problems/{code}`, and
+//! the page: `GET /` with its `/page/` files.
 
 pub mod budget;
 pub mod encoding;
@@ -12,6 +13,7 @@ pub(crate) mod memory;
 pub mod metrics;
 mod mixed;
 pub mod openapi;
+mod page;
 pub mod pool;
 pub mod problem;
 mod routes;
@@ -173,6 +175,10 @@ pub fn router(app: Arc<App>) -> Router {
         ));
     let api = Router::new()
         .merge(scenes)
+        .route("/", axum::routing::get(page::index))
+        .route("/page/page.js", axum::routing::get(page::script))
+        .route("/page/page.css", axum::routing::get(page::style))
+        .route("/page/icon.svg", axum::routing::get(page::icon))
         .route("/healthz", axum::routing::get(routes::healthz))
         .route("/readyz", axum::routing::get(routes::readyz))
         .route("/metrics", axum::routing::get(routes::metrics))

@@ -1,0 +1,102 @@
+// The page at `/`, in a real browser: Debian's chromium, driven by playwright-core, with
+// software WebGL. Run by tests/browser.rs against a running server:
+//   node tools/browser/page-test.mjs BASE_URL FIXTURES_DIR SCREENSHOT_DIR
+// Exits 0 when every check passes, 1 (with the reason) when one fails.
+
+import { chromium } from "playwright-core";
+import { execFileSync } from "node:child_process";
+import { readFileSync, mkdirSync } from "node:fs";
+import { join } from "node:path";
+
+const [base, fixtures, shots] = process.argv.slice(2);
+mkdirSync(shots, { recursive: true });
+
+function executable() {
+  for (const name of ["chromium", "chromium-browser"]) {
+    try {
+      return execFileSync("sh", ["-c", `command -v ${name}`]).toString().trim();
+    } catch {}
+  }
+  throw new Error("chromium not found");
+}
+
+function check(condition, message) {
+  if (!condition) throw new Error(message);
+}
+
+const mirror = join(fixtures, "NormalTangentMirrorTest");
+const gltf = join(mirror, "NormalTangentMirrorTest.gltf");
+const bin = join(mirror, "NormalTangentMirrorTest.bin");
+
+// What /v1/analyze says about the same files: the page must show the same counts.
+async function expectedSummary() {
+  const form = new FormData();
+  form.append("file", new Blob([readFileSync(gltf)]), "NormalTangentMirrorTest.gltf");
+  form.append("NormalTangentMirrorTest.bin", new Blob([readFileSync(bin)]), "NormalTangentMirrorTest.bin");
+  const response = await fetch(`${base}/v1/analyze?method=mikktspace&normals=auto`, { method: "POST", body: form });
+  check(response.ok, `/v1/analyze answered ${response.status}`);
+  return (await response.json()).summary;
+}
+
+const browser = await chromium.launch({
+  executablePath: executable(),
+  headless: true,
+  chromiumSandbox: false,
+  args: ["--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
+});
+const problems = [];
+try {
+  const page = await browser.newPage({ acceptDownloads: true, viewport: { width: 1200, height: 900 } });
+  page.on("console", (m) => { if (m.type() === "error") problems.push(`console: ${m.text()}`); });
+  page.on("pageerror", (e) => problems.push(`page error: ${e.message}`));
+
+  await page.goto(`${base}/`);
+  await page.waitForSelector("body[data-ready=true]", { timeout: 15000 });
+
+  // NormalTangentMirrorTest's .gltf and .bin: the counts, the picture, a download.
+  await page.setInputFiles("#files", [gltf, bin]);
+  await page.click("#run");
+  await page.waitForSelector("#results:not([hidden])", { timeout: 60000 });
+  const expected = await expectedSummary();
+  for (const key of ["triangles", "mirrored_uv_triangles", "audited"]) {
+    const shown = (await page.textContent(`#summary-${key}`)).replace(/,/g, "");
+    check(shown === String(expected[key]), `summary ${key}: page shows ${shown}, /v1/analyze ${expected[key]}`);
+  }
+  const findings = await page.locator("#findings li").count();
+  check(findings === expected.findings.error + expected.findings.warning + expected.findings.info,
+    `${findings} findings shown`);
+  const picture = await page.waitForFunction(() => {
+    const img = document.getElementById("uv-layout");
+    return img.complete && img.naturalWidth > 0 ? img.naturalWidth : 0;
+  }, null, { timeout: 30000 });
+  check((await picture.jsonValue()) > 0, "the UV layout did not load");
+  const [download] = await Promise.all([page.waitForEvent("download"), page.click("#download-scene")]);
+  const saved = join(shots, download.suggestedFilename());
+  await download.saveAs(saved);
+  const glb = readFileSync(saved);
+  check(glb.toString("latin1", 0, 4) === "glTF", "the download is not a GLB");
+  const jsonLength = glb.readUInt32LE(12);
+  const document = JSON.parse(glb.toString("utf8", 20, 20 + jsonLength));
+  check(document.meshes[0].primitives[0].attributes.TANGENT !== undefined, "the downloaded scene has no TANGENT");
+  await page.screenshot({ path: join(shots, "page-mirror.png"), fullPage: true });
+
+  // The .gltf alone: its buffer is missing, and the page says so with the problem's title.
+  await page.goto(`${base}/`);
+  await page.waitForSelector("body[data-ready=true]");
+  await page.setInputFiles("#files", [gltf]);
+  await page.click("#run");
+  await page.waitForSelector("#error:not([hidden])", { timeout: 30000 });
+  const title = await page.textContent("#error-title");
+  check(title === "A file the scene refers to was not supplied", `error title: ${title}`);
+  await page.screenshot({ path: join(shots, "page-missing-buffer.png"), fullPage: true });
+  // The failed request is the browser's own console error ("Failed to load resource: 422");
+  // anything else is the page's.
+  const own = problems.filter((p) => !/Failed to load resource: the server responded with a status of 422/.test(p));
+  check(own.length === 0, own.join("; "));
+  console.log(`browser: page test passed (screenshots in ${shots})`);
+} catch (error) {
+  console.log(`browser: page test failed: ${error.message}`);
+  process.exitCode = 1;
+} finally {
+  await browser.close();
+}
