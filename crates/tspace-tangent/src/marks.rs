@@ -197,18 +197,24 @@ mod tests {
         (positions, normals, uvs, indices)
     }
 
-    #[test]
-    fn marks_agree_with_the_diagnostics() {
-        let (positions, normals, uvs, indices) = mirrored_pair();
+    /// The mesh's tangents, with default options, and its marks.
+    fn computed(mesh: &Mesh) -> (Tangents, Marks) {
+        let (positions, normals, uvs, indices) = mesh;
         let input = MeshInput {
-            positions: &positions,
-            normals: Some(&normals),
-            uvs: Some(&uvs),
-            indices: Some(&indices),
+            positions,
+            normals: Some(normals),
+            uvs: Some(uvs),
+            indices: Some(indices),
         };
         let options = Options::default();
         let tangents = generate(&input, &options).unwrap();
         let marks = marks(&input, &options, &tangents);
+        (tangents, marks)
+    }
+
+    #[test]
+    fn marks_agree_with_the_diagnostics() {
+        let (tangents, marks) = computed(&mirrored_pair());
         let d = &tangents.diagnostics;
         assert_eq!(marks.triangles.len(), 5);
         assert_eq!(
@@ -241,17 +247,9 @@ mod tests {
 
     #[test]
     fn a_non_finite_triangle_is_marked_as_that_alone() {
-        let (mut positions, normals, uvs, indices) = mirrored_pair();
-        positions[4][0] = f32::NAN;
-        let input = MeshInput {
-            positions: &positions,
-            normals: Some(&normals),
-            uvs: Some(&uvs),
-            indices: Some(&indices),
-        };
-        let options = Options::default();
-        let tangents = generate(&input, &options).unwrap();
-        let marks = marks(&input, &options, &tangents);
+        let mut mesh = mirrored_pair();
+        mesh.0[4][0] = f32::NAN;
+        let (tangents, marks) = computed(&mesh);
         assert_eq!(
             marks.count(TriangleMarks::NON_FINITE),
             tangents.diagnostics.non_finite_triangles.count
