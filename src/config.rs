@@ -48,8 +48,9 @@ pub struct ServeArgs {
     /// Log format.
     #[arg(long, env = "TSPACE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     pub log_format: LogFormat,
-    /// A file of API keys, one per line (# starts a comment): when given, /v1/tangents and
-    /// /v1/analyze answer only `Authorization: Bearer <key>` for one of them, else 401.
+    /// A file of API keys, one per line (# starts a comment): when given, /v1/tangents,
+    /// /v1/analyze and /v1/uv-layout answer only `Authorization: Bearer <key>` for one of them,
+    /// else 401.
     #[arg(long, env = "TSPACE_API_KEYS_FILE")]
     pub api_keys_file: Option<PathBuf>,
 }

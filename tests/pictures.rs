@@ -205,3 +205,27 @@ fn corpus_assets_draw_with_their_reports_counts() {
         keep(&format!("{name}.png"), &png);
     }
 }
+
+/// Hostile texture coordinates and a mesh name made of markup: the picture is still drawn, the
+/// name shows as text, and the legend counts what the report counts.
+#[test]
+fn hostile_uvs_and_names_are_drawn_safely() {
+    let mut sphere = uv_sphere(12, 8);
+    sphere.name = "<script>alert(1)</script>\u{0007}".into();
+    sphere.uvs[3] = [f32::NAN, 0.5];
+    sphere.uvs[10] = [f32::INFINITY, f32::NEG_INFINITY];
+    sphere.uvs[20] = [1e30, -1e30];
+    let processed = drawn(InputKind::Glb, &shape_glb(&sphere), None);
+    let svg = pictures::svg(&Subject { file: "a&b\".glb" }, &processed.layouts);
+    assert!(!svg.contains("<script>"));
+    assert!(svg.contains("&lt;script&gt;alert(1)&lt;/script&gt;"));
+    assert!(!svg.contains('\u{0007}'));
+    assert!(svg.contains("a&amp;b&quot;.glb"));
+    assert!(
+        svg.contains("are cut off"),
+        "UVs at 1e30 are beyond the tiles drawn"
+    );
+    let report = serde_json::to_value(&processed.report).unwrap();
+    assert_legend_matches_report(&svg, &processed.layouts[0], &report);
+    assert!(pictures::png(&svg).is_ok());
+}

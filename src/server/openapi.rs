@@ -367,7 +367,11 @@ mod tests {
     #[test]
     fn the_parameters_are_the_option_table_and_the_content_encoding() {
         let api = document();
-        for (route, output_too) in [("/v1/tangents", true), ("/v1/analyze", false)] {
+        for (route, output_too, own) in [
+            ("/v1/tangents", true, &[][..]),
+            ("/v1/analyze", false, &[][..]),
+            ("/v1/uv-layout", false, &["format", "mesh", "primitive"][..]),
+        ] {
             let names: Vec<&str> = api["paths"][route]["post"]["parameters"]
                 .as_array()
                 .unwrap()
@@ -375,14 +379,19 @@ mod tests {
                 .filter(|p| p["in"] == "query")
                 .map(|p| p["name"].as_str().unwrap())
                 .collect();
-            let expected: Vec<&str> = QUERY_OPTIONS
+            let expected: Vec<&str> = own
                 .iter()
-                .filter(|o| output_too || !o.output_only)
-                .map(|o| o.key)
+                .copied()
+                .chain(
+                    QUERY_OPTIONS
+                        .iter()
+                        .filter(|o| output_too || !o.output_only)
+                        .map(|o| o.key),
+                )
                 .collect();
             assert_eq!(names, expected, "{route}");
         }
-        for route in ["/v1/tangents", "/v1/analyze"] {
+        for route in ["/v1/tangents", "/v1/analyze", "/v1/uv-layout"] {
             let headers: Vec<&Value> = api["paths"][route]["post"]["parameters"]
                 .as_array()
                 .unwrap()
@@ -471,7 +480,7 @@ mod tests {
             api["components"]["securitySchemes"]["api_key"]["scheme"],
             "bearer"
         );
-        for path in ["/v1/tangents", "/v1/analyze"] {
+        for path in ["/v1/tangents", "/v1/analyze", "/v1/uv-layout"] {
             let security = &api["paths"][path]["post"]["security"];
             assert_eq!(
                 security,
