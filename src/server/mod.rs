@@ -179,6 +179,8 @@ pub fn router(app: Arc<App>) -> Router {
         .route("/page/page.js", axum::routing::get(page::script))
         .route("/page/page.css", axum::routing::get(page::style))
         .route("/page/icon.svg", axum::routing::get(page::icon))
+        .route("/page/view.js", axum::routing::get(page::view))
+        .route("/page/vendor/three.min.js", axum::routing::get(page::three))
         .route("/healthz", axum::routing::get(routes::healthz))
         .route("/readyz", axum::routing::get(routes::readyz))
         .route("/metrics", axum::routing::get(routes::metrics))

@@ -10,11 +10,16 @@ const INDEX: &str = include_str!("page/index.html");
 const SCRIPT: &str = include_str!("page/page.js");
 const STYLE: &str = include_str!("page/page.css");
 const ICON: &str = include_str!("page/icon.svg");
+const VIEW: &str = include_str!("page/view.js");
+/// three.js 0.187.0 with OrbitControls and GLTFLoader, bundled and minified by
+/// `scripts/vendor-three` (MIT; its licence is `page/vendor/three-LICENSE`).
+const THREE: &str = include_str!("page/vendor/three.min.js");
 
-/// Only the page's own files, and the pictures and downloads it makes as `blob:` URLs: a file
-/// name or mesh name shown on it cannot bring in anything else.
+/// Only the page's own files, and the pictures, downloads and textures it makes as `blob:` URLs
+/// (three.js fetches its textures): a file name or mesh name shown on it cannot bring in
+/// anything else.
 const POLICY: &str = "default-src 'none'; script-src 'self'; style-src 'self'; \
-    img-src 'self' blob:; connect-src 'self'; base-uri 'none'; form-action 'none'; \
+    img-src 'self' blob:; connect-src 'self' blob:; base-uri 'none'; form-action 'none'; \
     frame-ancestors 'none'";
 
 fn asset(body: &'static str, media_type: &'static str) -> Response {
@@ -49,4 +54,12 @@ pub async fn style() -> Response {
 
 pub async fn icon() -> Response {
     asset(ICON, "image/svg+xml")
+}
+
+pub async fn view() -> Response {
+    asset(VIEW, "text/javascript; charset=utf-8")
+}
+
+pub async fn three() -> Response {
+    asset(THREE, "text/javascript; charset=utf-8")
 }

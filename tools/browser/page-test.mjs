@@ -70,6 +70,24 @@ try {
     return img.complete && img.naturalWidth > 0 ? img.naturalWidth : 0;
   }, null, { timeout: 30000 });
   check((await picture.jsonValue()) > 0, "the UV layout did not load");
+  // The 3D view: drawn, not blank (more than a handful of colours), with tangent frames.
+  await page.waitForSelector("#view[data-view=ready]", { timeout: 60000 });
+  const colours = await page.evaluate(() => {
+    const view = document.getElementById("view");
+    const copy = document.createElement("canvas");
+    copy.width = view.width;
+    copy.height = view.height;
+    const context = copy.getContext("2d");
+    context.drawImage(view, 0, 0);
+    const pixels = context.getImageData(0, 0, copy.width, copy.height).data;
+    const seen = new Set();
+    for (let i = 0; i < pixels.length; i += 4 * 97) seen.add(`${pixels[i]},${pixels[i + 1]},${pixels[i + 2]}`);
+    return seen.size;
+  });
+  check(colours > 50, `the 3D view looks blank (${colours} colours)`);
+  const frameCount = Number(await page.getAttribute("#view", "data-frames"));
+  check(frameCount > 0, "no tangent frames drawn");
+  await page.locator("#view").screenshot({ path: join(shots, "view-mirror.png") });
   const [download] = await Promise.all([page.waitForEvent("download"), page.click("#download-scene")]);
   const saved = join(shots, download.suggestedFilename());
   await download.saveAs(saved);

@@ -177,7 +177,15 @@ async function run(event) {
     const stem = main.name.replace(/\.[^.]*$/, "");
     link($("download-scene"), scene, `${stem}.tspace.glb`);
     $("results").hidden = false;
-    $("status").textContent = `Done: ${main.name}`;
+    $("status").textContent = "Drawing the scene in 3D…";
+    try {
+      // Loaded when first needed, so that a browser without WebGL still gets the rest.
+      const { showScene } = await import("/page/view.js");
+      await showScene($("view"), await scene.arrayBuffer());
+      $("status").textContent = `Done: ${main.name}`;
+    } catch (error) {
+      $("status").textContent = `Done: ${main.name} (no 3D view: ${error.message || error})`;
+    }
   } catch (problem) {
     fail(problem);
   }
