@@ -2,7 +2,8 @@
 //! (software WebGL) with playwright-core against a server started here, choosing
 //! NormalTangentMirrorTest's .gltf and .bin (the counts `/v1/analyze` gives, the UV picture, a
 //! download of the scene with tangents) and then the .gltf alone (the missing buffer's problem
-//! title), with no console errors. Screenshots go to `target/browser-screenshots`.
+//! title), with no console errors; where `../shared/corpus` is present, DamagedHelmet, SciFiHelmet
+//! and spot too (the counts, a 3D view). Screenshots go to `target/browser-screenshots`.
 //!
 //! Skips, printing one line, where `scripts/install-browser` could not install chromium or
 //! playwright-core; set `TSPACE_REQUIRE_BROWSER=1` to make that a failure.
@@ -40,13 +41,15 @@ async fn the_page_shows_the_report_the_picture_and_a_download() {
     let script = root.join("tools/browser/page-test.mjs");
     let fixtures = root.join("fixtures");
     let shots = root.join("target/browser-screenshots");
+    // The shared corpus beside the checkout, when it is there: its helmets and spot too.
+    let corpus = root.join("../shared/corpus");
     let output = tokio::task::spawn_blocking(move || {
-        Command::new("node")
-            .arg(script)
-            .arg(base)
-            .arg(fixtures)
-            .arg(shots)
-            .output()
+        let mut node = Command::new("node");
+        node.arg(script).arg(base).arg(fixtures).arg(shots);
+        if corpus.is_dir() {
+            node.arg(corpus);
+        }
+        node.output()
     })
     .await
     .unwrap();

@@ -1,14 +1,16 @@
 // The page at `/`, in a real browser: Debian's chromium, driven by playwright-core, with
 // software WebGL. Run by tests/browser.rs against a running server:
-//   node tools/browser/page-test.mjs BASE_URL FIXTURES_DIR SCREENSHOT_DIR
+//   node tools/browser/page-test.mjs BASE_URL FIXTURES_DIR SCREENSHOT_DIR [CORPUS_DIR]
+// With CORPUS_DIR (../shared/corpus, where present), the corpus's DamagedHelmet, SciFiHelmet and
+// spot go through the page too.
 // Exits 0 when every check passes, 1 (with the reason) when one fails.
 
 import { chromium } from "playwright-core";
 import { execFileSync } from "node:child_process";
 import { readFileSync, mkdirSync } from "node:fs";
-import { join } from "node:path";
+import { basename, join } from "node:path";
 
-const [base, fixtures, shots] = process.argv.slice(2);
+const [base, fixtures, shots, corpus] = process.argv.slice(2);
 mkdirSync(shots, { recursive: true });
 
 function executable() {
@@ -29,10 +31,12 @@ const gltf = join(mirror, "NormalTangentMirrorTest.gltf");
 const bin = join(mirror, "NormalTangentMirrorTest.bin");
 
 // What /v1/analyze says about the same files: the page must show the same counts.
-async function expectedSummary() {
+async function expectedSummary(files = [gltf, bin]) {
   const form = new FormData();
-  form.append("file", new Blob([readFileSync(gltf)]), "NormalTangentMirrorTest.gltf");
-  form.append("NormalTangentMirrorTest.bin", new Blob([readFileSync(bin)]), "NormalTangentMirrorTest.bin");
+  files.forEach((path, i) => {
+    const name = basename(path);
+    form.append(i === 0 ? "file" : name, new Blob([readFileSync(path)]), name);
+  });
   const response = await fetch(`${base}/v1/analyze?method=mikktspace&normals=auto`, { method: "POST", body: form });
   check(response.ok, `/v1/analyze answered ${response.status}`);
   return (await response.json()).summary;
@@ -97,6 +101,26 @@ try {
   const document = JSON.parse(glb.toString("utf8", 20, 20 + jsonLength));
   check(document.meshes[0].primitives[0].attributes.TANGENT !== undefined, "the downloaded scene has no TANGENT");
   await page.screenshot({ path: join(shots, "page-mirror.png"), fullPage: true });
+
+  // The corpus's assets, where it is present: the counts, and a 3D view that is not blank.
+  const assets = corpus ? [
+    ["helmet", ["gltf_DamagedHelmet/glTF-Binary/DamagedHelmet.glb"]],
+    ["scifi", ["gltf_SciFiHelmet_no_images/SciFiHelmet.gltf", "gltf_SciFiHelmet_no_images/SciFiHelmet.bin"]],
+    ["spot", ["obj_spot/spot_triangulated.obj"]],
+  ] : [];
+  for (const [name, relative] of assets) {
+    const files = relative.map((r) => join(corpus, r));
+    await page.goto(`${base}/`);
+    await page.waitForSelector("body[data-ready=true]");
+    await page.setInputFiles("#files", files);
+    await page.click("#run");
+    await page.waitForSelector("#view[data-view=ready]", { timeout: 120000 });
+    const wanted = await expectedSummary(files);
+    const shown = (await page.textContent("#summary-triangles")).replace(/,/g, "");
+    check(shown === String(wanted.triangles), `${name}: page shows ${shown} triangles, /v1/analyze ${wanted.triangles}`);
+    await page.locator("#view").screenshot({ path: join(shots, `view-${name}.png`) });
+    await page.screenshot({ path: join(shots, `page-${name}.png`), fullPage: true });
+  }
 
   // The .gltf alone: its buffer is missing, and the page says so with the problem's title.
   await page.goto(`${base}/`);

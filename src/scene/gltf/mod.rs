@@ -91,9 +91,10 @@ pub fn process_with<'a>(
     };
     let computed = compute_jobs(root, &jobs.list, data, options)?;
     SceneError::check(cancel)?;
-    let layouts = match options.layouts {
-        true => layouts(&plans, &jobs, &computed, options),
-        false => Vec::new(),
+    let layouts = if options.layouts {
+        layouts(&plans, &jobs, &computed, options)
+    } else {
+        Vec::new()
     };
     let scene = Scene {
         cancel,
