@@ -1204,3 +1204,39 @@ fn uv_layout_writes_an_svg_beside_the_input_or_a_png_where_told() {
     assert!(line.contains("(nothing-to-draw)"), "{line}");
     assert!(line.contains("meshes[0].primitives[0]"), "{line}");
 }
+
+#[test]
+fn debug_colors_write_a_debug_named_scene_that_says_what_it_is() {
+    let dir = TempDir::new("debug-colors");
+    let scene = dir.copy_fixture("NormalTangentMirrorTest", "mirror");
+    let input = scene.join("NormalTangentMirrorTest.gltf");
+    let out = tspace(
+        dir.path(),
+        &[
+            "process",
+            input.to_str().unwrap(),
+            "--debug-colors",
+            "--report",
+            "report.json",
+            "-v",
+        ],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    // Named so that nobody ships it, and not taken for an input by a later run.
+    let output = scene.join("NormalTangentMirrorTest.debug.glb");
+    let gltf = glb_json(&output);
+    assert!(gltf["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"].is_u64());
+    assert!(!scene.join("NormalTangentMirrorTest.tspace.glb").exists());
+    let report = read_json(&dir.path().join("report.json"));
+    assert!(report["debug_colors"]["classes"].is_array());
+    assert!(
+        stderr(&out).contains("not for shipping"),
+        "{}",
+        stderr(&out)
+    );
+    let out = tspace(dir.path(), &["analyze", scene.to_str().unwrap(), "-q"]);
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let reports: Value = serde_json::from_slice(&out.stdout).unwrap_or(Value::Null);
+    let inputs = serde_json::to_string(&reports).unwrap();
+    assert!(!inputs.contains(".debug.glb"), "{inputs}");
+}

@@ -1,7 +1,7 @@
 //! The HTTP service, started for real on an ephemeral loopback port and called with reqwest.
 
 #[allow(unused_imports)]
-use tspace_testkit::fixture;
+use tspace_testkit::{fixture, glb_json};
 
 use reqwest::multipart::{Form, Part};
 use serde_json::{Value, json};
@@ -180,13 +180,44 @@ async fn options_analyze_and_multipart_mixed() {
     assert!(sections[2].contains("model/gltf-binary"));
     assert!(sections[2].contains("glTF"));
 
+    // A debug scene says so in its report and in the name it is sent under.
     let response = http
-        .post(format!("{base}/v1/tangents?method=magic"))
-        .body(grid(2))
+        .post(format!("{base}/v1/tangents?debug=colors"))
+        .header("accept", "multipart/mixed")
+        .body(grid(4))
         .send()
         .await
         .unwrap();
-    problem(response, 400, "invalid-option").await;
+    assert_eq!(response.status(), 200);
+    let content_type = response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    let body = response.bytes().await.unwrap();
+    let head = String::from_utf8_lossy(&body[..body.len().min(64 << 10)]).into_owned();
+    assert!(head.contains("filename=\"scene.debug.glb\""), "{head}");
+    let parts = mixed_parts(&content_type, body).await;
+    let report: Value = serde_json::from_slice(&parts[0].1).unwrap();
+    assert_eq!(report["debug_colors"]["primitives"], json!(1));
+    assert!(
+        report["findings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f["code"] == "debug_colors" && f["severity"] == "warning")
+    );
+    let scene = glb_json(&parts[1].1);
+    assert!(scene["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"].is_u64());
+
+    for bad in ["method=magic", "debug=wireframe"] {
+        let response = http
+            .post(format!("{base}/v1/tangents?{bad}"))
+            .body(grid(2))
+            .send()
+            .await
+            .unwrap();
+        problem(response, 400, "invalid-option").await;
+    }
     running.shutdown().await.unwrap();
 }
 

@@ -10,6 +10,7 @@ use super::{AnalyzeArgs, Exit, ProcessArgs, RunArgs, usage_error};
 use crate::scene::error::ProblemCode;
 use crate::scene::folder::Folder;
 use crate::scene::input::{self, InputKind};
+use crate::scene::options::Debug;
 use crate::scene::report::Report;
 use crate::scene::{OutputFormat, Processed, SceneOptions};
 use rayon::prelude::*;
@@ -217,10 +218,11 @@ fn destination(args: &ProcessArgs) -> Destination {
     }
 }
 
-/// Each input's part of the run; `destination` is where outputs go, `None` for `analyze`.
+/// Each input's part of the run; `destination` is where outputs go (and whether they are debug
+/// outputs), `None` for `analyze`.
 fn plan_runs<'a>(
     found: &'a [Found],
-    destination: Option<&Destination>,
+    destination: Option<(&Destination, bool)>,
     format: OutputFormat,
 ) -> Vec<Plan<'a>> {
     found
@@ -228,7 +230,7 @@ fn plan_runs<'a>(
         .map(|f| match f {
             Found::File(input) => Plan::Run(
                 input,
-                destination.map(|d| paths::output_path(input, d, format)),
+                destination.map(|(d, debug)| paths::output_path(input, d, format, debug)),
             ),
             Found::Unreadable { path, message } => Plan::Fail(path, message),
         })
@@ -341,12 +343,17 @@ pub(crate) fn process(mut args: ProcessArgs) -> Exit {
     }
     let format = output_format(&args);
     let found = paths::collect(&args.inputs, args.out_dir.as_deref());
-    let plan = plan_runs(&found, Some(&destination(&args)), format);
+    let debug = args.debug_colors;
+    let plan = plan_runs(&found, Some((&destination(&args), debug)), format);
     if let Err(message) = check_outputs(&plan, args.report.as_deref()) {
         return usage_error("process", message);
     }
 
-    let outcomes = run_all(&plan, &args.scene.scene_options(format, true), &args.run);
+    let options = SceneOptions {
+        debug: if debug { Debug::Colors } else { Debug::None },
+        ..args.scene.scene_options(format, true)
+    };
+    let outcomes = run_all(&plan, &options, &args.run);
     print_outcomes(&outcomes, args.run.verbose);
     let tally = Tally::of(&outcomes);
     let mut exit = tally.exit;

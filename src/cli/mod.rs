@@ -238,6 +238,11 @@ struct ProcessArgs {
     /// Output format [default: glb, or gltf when -o names a .gltf file].
     #[arg(long, value_parser = choice::<OutputFormat>())]
     format: Option<OutputFormat>,
+    /// Write a scene for looking, not shipping: each computed primitive painted by what tspace
+    /// found in its triangles (COLOR_0 and an unlit material). Outputs are named
+    /// <stem>.debug.glb.
+    #[arg(long)]
+    debug_colors: bool,
     #[command(flatten)]
     run: RunArgs,
 }

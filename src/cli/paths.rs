@@ -108,7 +108,8 @@ fn is_scene_name(name: &str) -> bool {
         return false;
     };
     match extension {
-        "glb" | "gltf" => !stem.ends_with(".tspace"),
+        // tspace's own outputs (of an earlier run beside the inputs) are not inputs.
+        "glb" | "gltf" => !stem.ends_with(".tspace") && !stem.ends_with(".debug"),
         "obj" => true,
         _ => false,
     }
@@ -132,11 +133,13 @@ pub(crate) fn extension(format: OutputFormat) -> &'static str {
     }
 }
 
-/// The output path for `input`.
+/// The output path for `input`. A debug output (`--debug-colors`) is `<stem>.debug.<ext>`
+/// beside the input or in the directory, so that it is never taken for the one to ship.
 pub(crate) fn output_path(
     input: &Input,
     destination: &Destination,
     format: OutputFormat,
+    debug: bool,
 ) -> PathBuf {
     let stem = input
         .path
@@ -151,6 +154,7 @@ pub(crate) fn output_path(
     };
     match destination {
         Destination::File(path) => path.clone(),
+        Destination::Beside if debug => input.path.with_file_name(with_extension(".debug.")),
         Destination::Beside => input.path.with_file_name(with_extension(".tspace.")),
         Destination::Dir(dir) => {
             let folder = input
@@ -158,7 +162,8 @@ pub(crate) fn output_path(
                 .as_deref()
                 .and_then(Path::parent)
                 .unwrap_or(Path::new(""));
-            dir.join(folder).join(with_extension("."))
+            dir.join(folder)
+                .join(with_extension(if debug { ".debug." } else { "." }))
         }
     }
 }
@@ -261,6 +266,7 @@ mod tests {
         assert!(is_scene_name("a.GLTF"));
         assert!(is_scene_name("a.tspace.obj"));
         assert!(!is_scene_name("a.tspace.glb"));
+        assert!(!is_scene_name("a.debug.gltf"));
         assert!(!is_scene_name("a.bin"));
         assert!(!is_scene_name("glb"));
     }
@@ -272,16 +278,30 @@ mod tests {
             relative: Some(PathBuf::from("sub/x.obj")),
         };
         assert_eq!(
-            output_path(&input, &Destination::Beside, OutputFormat::Glb),
+            output_path(&input, &Destination::Beside, OutputFormat::Glb, false),
             PathBuf::from("in/sub/x.tspace.glb")
         );
         assert_eq!(
             output_path(
                 &input,
                 &Destination::Dir(PathBuf::from("out")),
-                OutputFormat::GltfEmbedded
+                OutputFormat::GltfEmbedded,
+                false
             ),
             PathBuf::from("out/sub/x.gltf")
+        );
+        assert_eq!(
+            output_path(&input, &Destination::Beside, OutputFormat::Glb, true),
+            PathBuf::from("in/sub/x.debug.glb")
+        );
+        assert_eq!(
+            output_path(
+                &input,
+                &Destination::Dir(PathBuf::from("out")),
+                OutputFormat::Glb,
+                true
+            ),
+            PathBuf::from("out/sub/x.debug.glb")
         );
         let named = Input {
             path: PathBuf::from("x.glb"),
@@ -291,7 +311,8 @@ mod tests {
             output_path(
                 &named,
                 &Destination::Dir(PathBuf::from("out")),
-                OutputFormat::Glb
+                OutputFormat::Glb,
+                false
             ),
             PathBuf::from("out/x.glb")
         );

@@ -137,6 +137,18 @@ named_choices! {
     }
 }
 
+named_choices! {
+    /// Outputs for looking rather than shipping.
+    pub enum Debug expecting "none or colors" {
+        /// The processed scene as it should ship.
+        #[default]
+        None => "none", "The processed scene as it should ship";
+        /// Every computed primitive painted by what tspace found in each triangle (COLOR_0
+        /// and an unlit material): for looking in a viewer, never for shipping.
+        Colors => "colors", "Paint each triangle by its finding (COLOR_0 and an unlit material), for looking in a viewer: never ship it";
+    }
+}
+
 /// A crease angle in degrees, from 0 to 180: edges whose faces meet at more stay hard.
 pub fn parse_angle(text: &str) -> Result<f32, Expected> {
     text.parse::<f32>()
@@ -220,6 +232,8 @@ pub struct SceneOptions {
     pub tangents: TangentType,
     /// How the written geometry is stored.
     pub compress: Compression,
+    /// An output for looking instead of the one to ship.
+    pub debug: Debug,
     pub limits: SceneLimits,
     /// Set by whoever waits for the scene when they stop waiting (a request that timed out, a
     /// client that went away): the work stops between steps and inside the core, and the
@@ -243,6 +257,7 @@ impl Default for SceneOptions {
             write: true,
             tangents: TangentType::Auto,
             compress: Compression::Auto,
+            debug: Debug::None,
             limits: SceneLimits::default(),
             cancel: Cancel::default(),
             layouts: false,
@@ -331,7 +346,7 @@ fn switch_name(on: bool) -> String {
 }
 
 /// Every option [`SceneOptions::set`] takes, in the order messages and documents list them.
-pub const QUERY_OPTIONS: [QueryOption; 8] = [
+pub const QUERY_OPTIONS: [QueryOption; 9] = [
     QueryOption {
         key: "method",
         help: "How tangents are computed",
@@ -409,6 +424,20 @@ pub const QUERY_OPTIONS: [QueryOption; 8] = [
         value_in: |o| o.compress.name().to_owned(),
         set: |o, v| {
             o.compress = v.parse().map_err(|e: Expected| e.to_string())?;
+            Ok(())
+        },
+    },
+    QueryOption {
+        key: "debug",
+        help: "colors writes a scene for looking, not shipping: each computed primitive painted by what tspace found in each triangle (COLOR_0 and an unlit material; vertices split where classes meet)",
+        values: OptionValues::OneOf {
+            type_name: "Debug",
+            choices: <Debug as Choices>::choices,
+        },
+        output_only: true,
+        value_in: |o| o.debug.name().to_owned(),
+        set: |o, v| {
+            o.debug = v.parse().map_err(|e: Expected| e.to_string())?;
             Ok(())
         },
     },
@@ -494,6 +523,7 @@ mod tests {
         choices_parse_back::<TangentType>(TangentType::name);
         choices_parse_back::<Compression>(Compression::name);
         choices_parse_back::<Normals>(Normals::name);
+        choices_parse_back::<Debug>(Debug::name);
     }
 
     /// What a document lists for an option is what the setter takes, and reads back as set.
@@ -568,7 +598,7 @@ mod tests {
         }
         assert_eq!(
             message("colour", "red"),
-            "unknown option \"colour\"; the options are method, overwrite, all, format, tangents, compress, normals and normals_angle"
+            "unknown option \"colour\"; the options are method, overwrite, all, format, tangents, compress, debug, normals and normals_angle"
         );
     }
 }

@@ -22,6 +22,7 @@
 
 use super::error::{ProblemCode, SceneError};
 use super::layout::Layout;
+use super::report::thousands;
 use resvg::{tiny_skia, usvg};
 use std::fmt::Write;
 use tspace_tangent::TriangleMarks;
@@ -887,19 +888,6 @@ fn counted(n: u64, noun: &str) -> String {
         (_, "vertex") => format!("{} vertices", thousands(n)),
         _ => format!("{} {noun}s", thousands(n)),
     }
-}
-
-/// `n` with commas between thousands: 2,000,000.
-fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
 }
 
 /// `text` made safe inside an SVG element or attribute: markup escaped, control characters

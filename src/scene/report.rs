@@ -46,10 +46,41 @@ pub struct Report {
     /// Deprecated since report version 2 (the scene-level `findings` carry the same messages
     /// with a code and a severity); kept until version 3.
     pub warnings: Vec<String>,
+    /// With `debug=colors`: what was painted. Its presence says the written scene is for
+    /// looking, not for shipping.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub debug_colors: Option<DebugColorsReport>,
     /// The scene's notices, in the order they were raised; [`Report::finish`] makes them
     /// findings.
     #[serde(skip)]
     pub notices: Vec<Notice>,
+}
+
+/// What `debug=colors` painted: each computed primitive's triangles coloured by class in
+/// COLOR_0, shown by one unlit material.
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
+pub struct DebugColorsReport {
+    /// Primitives painted (every primitive tspace gave tangents or audited).
+    pub primitives: u64,
+    /// The index of the material the painted primitives now use; absent when none was painted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub material: Option<usize>,
+    /// Vertices added so that triangles of different classes do not share one (beyond the
+    /// tangents' own split, which `summary.vertices_added` counts).
+    pub vertices_added: u64,
+    /// Every class, in order of precedence from lowest: a triangle in several takes the last.
+    pub classes: Vec<DebugClassReport>,
+}
+
+/// One colour of the debug scene.
+#[derive(Clone, Debug, Default, Serialize, ToSchema)]
+pub struct DebugClassReport {
+    /// `ordinary`, `mirrored_uv`, `repaired_tangent`, `zero_uv_area` or `degenerate`.
+    pub class: &'static str,
+    /// The colour as `#rrggbb` sRGB (COLOR_0 stores it linear).
+    pub color: String,
+    /// Triangles painted so, over the computations (shared geometry counted once).
+    pub triangles: u64,
 }
 
 #[derive(Clone, Debug, Default, Serialize, ToSchema)]
@@ -332,6 +363,19 @@ impl Report {
     }
 }
 
+/// `n` with commas between thousands: 2,000,000.
+pub fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
 /// How much a finding matters.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, ToSchema)]
 #[serde(rename_all = "lowercase")]
@@ -410,6 +454,8 @@ pub const NOTICES: &[(&str, Severity)] = &[
     ("draco_removed", Severity::Info),
     ("output_compressed", Severity::Info),
     ("buffers_merged", Severity::Info),
+    ("debug_colors", Severity::Warning),
+    ("debug_colors_unused", Severity::Info),
 ];
 
 /// The severity of a notice's code (an unknown code, which `Notice::new` rules out in tests,

@@ -12,6 +12,7 @@ use super::problem::Problem;
 use super::{App, content_type};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::input::{self, InputKind};
+use crate::scene::options::Debug;
 use crate::scene::pictures;
 use crate::scene::report::Report;
 use crate::scene::uri::{PartSet, percent_decode};
@@ -541,9 +542,12 @@ pub async fn tangents(
         OutputFormat::GltfEmbedded => "model/gltf+json",
     };
     if multipart {
-        let file_name = match query.format {
-            OutputFormat::Glb => "scene.glb",
-            OutputFormat::GltfEmbedded => "scene.gltf",
+        // A debug scene is named so that nobody takes it for the one to ship.
+        let file_name = match (query.format, query.debug) {
+            (OutputFormat::Glb, Debug::None) => "scene.glb",
+            (OutputFormat::GltfEmbedded, Debug::None) => "scene.gltf",
+            (OutputFormat::Glb, Debug::Colors) => "scene.debug.glb",
+            (OutputFormat::GltfEmbedded, Debug::Colors) => "scene.debug.gltf",
         };
         let report = processed.report.to_json_pretty();
         let mixed = mixed::report_and_scene(&report, &bytes, scene_type, file_name);

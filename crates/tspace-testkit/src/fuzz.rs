@@ -79,6 +79,12 @@ fn scene_options(data: &[u8]) -> SceneOptions {
             TangentType::Auto
         },
         compress: Default::default(),
+        // Sometimes painted by finding (the debug scene must load again too).
+        debug: if h & 0x1000 != 0 {
+            tspace::scene::options::Debug::Colors
+        } else {
+            tspace::scene::options::Debug::None
+        },
         // OBJ only: the OBJ target chooses its own.
         normals: Default::default(),
         normals_angle: 60.0,

@@ -5,6 +5,7 @@
 pub mod accessor;
 pub mod compute;
 pub(crate) mod created;
+pub mod debug;
 pub mod draco;
 pub mod glb;
 
@@ -18,17 +19,22 @@ pub mod write;
 
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::layout::{Layout, PrimitiveRef};
-use crate::scene::report::{MorphReport, PrimitiveReport, Report, StorageReport, TangentReport};
+use crate::scene::options::Debug;
+use crate::scene::report::{
+    DebugClassReport, DebugColorsReport, MorphReport, Notice, PrimitiveReport, Report,
+    StorageReport, TangentReport, thousands,
+};
 use crate::scene::{OutputFormat, Processed, SceneOptions, TangentType};
 use accessor::{Data, DecodedAccessors};
 use compute::{Computed, GeometryLimits};
+use debug::Painted;
 use load::{LoadLimits, Resources};
 use plan::{Action, GeometryKey, PlanOptions, PrimitivePlan, Topology};
 use quantize::Snorm;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use tspace_json::Node;
-use tspace_tangent::{Cancel, Method, Options, UvOrigin};
+use tspace_tangent::{Cancel, Marks, Method, Options, UvOrigin};
 use write::{Changes, PrimitiveEdit, Ref};
 
 fn accessor_count(root: &Node, index: Option<usize>) -> usize {
@@ -89,10 +95,25 @@ pub fn process_with<'a>(
         buffers: &buffers,
         decoded: &decoded,
     };
-    let computed = compute_jobs(root, &jobs.list, data, options)?;
+    let mut computed = compute_jobs(root, &jobs.list, data, options)?;
     SceneError::check(cancel)?;
+    let painting = options.write && options.debug == Debug::Colors;
+    let marks = if options.layouts || painting {
+        mark_jobs(&jobs, &computed, options)
+    } else {
+        Vec::new()
+    };
+    let painted: Vec<Painted> = if painting {
+        computed
+            .par_iter_mut()
+            .zip(&marks)
+            .map(|(c, marks)| debug::paint(c, marks))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let layouts = if options.layouts {
-        layouts(&plans, &jobs, &computed, options)
+        layouts(&plans, &jobs, &computed, marks)
     } else {
         Vec::new()
     };
@@ -104,10 +125,14 @@ pub fn process_with<'a>(
         tangents: options.tangents,
         compressed_output: write::compress::resolve(options.compress, root)
             == write::compress::Output::Meshopt,
+        painted: &painted,
     };
     let mut report = report_header(bytes, &loaded, options);
-    let edits = report_primitives(&scene, &plans, &jobs, &computed, &mut report)?;
+    let mut edits = report_primitives(&scene, &plans, &jobs, &computed, &mut report)?;
     add_totals(&mut report, &computed, &edits);
+    if painting {
+        report_painting(&mut report, root, &painted, &mut edits);
+    }
     SceneError::check(cancel)?;
     let bytes = write_scene(
         bytes,
@@ -126,28 +151,42 @@ pub fn process_with<'a>(
     })
 }
 
-/// The texture layout of every job that has texture coordinates (not the axis method's), with
-/// the marks the core's diagnostics count, computed with the same options.
-fn layouts(
-    plans: &[PrimitivePlan],
-    jobs: &Jobs,
-    computed: &[Computed],
-    options: &SceneOptions,
-) -> Vec<Layout> {
-    let mut layouts: Vec<Option<Layout>> = jobs
-        .list
+/// Every job's marks: each triangle's findings and each flip vertex, by the same test the core's
+/// diagnostics count with, under the same options.
+fn mark_jobs(jobs: &Jobs, computed: &[Computed], options: &SceneOptions) -> Vec<Marks> {
+    jobs.list
         .par_iter()
         .zip(computed)
         .map(|(job, computed)| {
-            let geometry = &computed.geometry;
-            let uvs = geometry.uvs.clone()?;
             let core_options = Options {
                 method: job.method,
                 uv_origin: UvOrigin::TopLeft,
                 normal_mode: options.normal_mode,
                 ..Options::default()
             };
-            let marks = tspace_tangent::marks(&geometry.input(), &core_options, &computed.tangents);
+            tspace_tangent::marks(
+                &computed.geometry.input(),
+                &core_options,
+                &computed.tangents,
+            )
+        })
+        .collect()
+}
+
+/// The texture layout of every job that has texture coordinates (not the axis method's), with
+/// its marks.
+fn layouts(
+    plans: &[PrimitivePlan],
+    jobs: &Jobs,
+    computed: &[Computed],
+    marks: Vec<Marks>,
+) -> Vec<Layout> {
+    let mut layouts: Vec<Option<Layout>> = computed
+        .par_iter()
+        .zip(marks)
+        .map(|(computed, marks)| {
+            let geometry = &computed.geometry;
+            let uvs = geometry.uvs.clone()?;
             Some(Layout {
                 primitives: Vec::new(),
                 texcoord: 0,
@@ -384,6 +423,8 @@ struct Scene<'s> {
     tangents: TangentType,
     /// The views tspace writes are meshopt-compressed.
     compressed_output: bool,
+    /// With debug colours: every job's colours (indexed by job); else empty.
+    painted: &'s [Painted],
 }
 
 /// One report entry per plan, in plan order; for each primitive that gets tangents, its edit.
@@ -410,9 +451,19 @@ fn report_primitives(
                 entry.reason = Some(reason.code());
                 entry.message = Some(reason.message());
             }
-            (Action::Audit, Some((_, c))) => {
+            (Action::Audit, Some((j, c))) => {
                 report.summary.audited += 1;
                 audit_primitive(scene, plan, c, &mut entry, report)?;
+                if let (Some(key), Some(primitive)) = (
+                    &plan.key,
+                    primitive_node(scene.root, plan.mesh, plan.primitive),
+                ) && let Some(edit) = edits.paint_kept(scene, primitive, key.topology, j, c)?
+                {
+                    edits
+                        .changes
+                        .primitives
+                        .insert((plan.mesh, plan.primitive), edit);
+                }
             }
             (Action::Generate, Some((j, c))) => {
                 report.summary.generated += 1;
@@ -422,9 +473,99 @@ fn report_primitives(
             }
             _ => entry.action = "skipped",
         }
+        if let Some(note) = painted_note(scene.root, plan, &edits) {
+            entry.notes.push(note);
+        }
         report.primitives.push(entry);
     }
     Ok(edits)
+}
+
+/// A painted primitive's note: what it lost in the debug output.
+fn painted_note(root: &Node, plan: &PrimitivePlan, edits: &Edits) -> Option<String> {
+    edits
+        .changes
+        .primitives
+        .get(&(plan.mesh, plan.primitive))?
+        .material?;
+    let primitive = primitive_node(root, plan.mesh, plan.primitive)?;
+    let material = match plan.material {
+        Some(m) => format!("material {m}"),
+        None => "no material".to_owned(),
+    };
+    let color = match primitive.get("attributes").and_then(|a| a.get("COLOR_0")) {
+        Some(_) => " and its own COLOR_0",
+        None => "",
+    };
+    Some(format!(
+        "debug colours: painted by finding; {material}{color} replaced in this output"
+    ))
+}
+
+/// The report's account of the debug colours, and the material they need when any primitive
+/// was painted.
+fn report_painting(report: &mut Report, root: &Node, painted: &[Painted], edits: &mut Edits) {
+    let primitives = edits
+        .changes
+        .primitives
+        .values()
+        .filter(|e| e.material.is_some())
+        .count() as u64;
+    let mut triangles = [0u64; 5];
+    let mut vertices_added = 0;
+    for p in painted {
+        for (total, count) in triangles.iter_mut().zip(p.triangles) {
+            *total += count;
+        }
+        vertices_added += p.vertices_added;
+    }
+    let material = (primitives > 0).then(|| {
+        edits
+            .changes
+            .materials
+            .push(debug::MATERIAL_JSON.to_owned());
+        edits.changes.extensions_used.push(debug::UNLIT);
+        root.get("materials")
+            .and_then(Node::as_array)
+            .map_or(0, <[Node]>::len)
+    });
+    let classes: Vec<DebugClassReport> = debug::Class::ALL
+        .iter()
+        .map(|&class| DebugClassReport {
+            class: class.name(),
+            color: class.hex(),
+            triangles: triangles[class as usize],
+        })
+        .collect();
+    let counted = classes
+        .iter()
+        .filter(|c| c.triangles > 0 && c.class != debug::Class::Ordinary.name())
+        .map(|c| format!("{} {} ({})", thousands(c.triangles), c.class, c.color))
+        .collect::<Vec<_>>();
+    let found = if counted.is_empty() {
+        "every triangle ordinary".to_owned()
+    } else {
+        counted.join(", ")
+    };
+    report.notices.push(if primitives == 0 {
+        Notice::new(
+            "debug_colors_unused",
+            "debug colours: no primitive was painted, as none gets tangents or an audit; the scene is written as it would be without the option",
+        )
+    } else {
+        Notice::new(
+            "debug_colors",
+            format!(
+                "debug colours: {primitives} primitive(s) painted by what tspace found in each triangle ({found}; ordinary #c9c9c9), with {vertices_added} vertices added where classes meet and an unlit material replacing theirs: this scene is for looking, not for shipping"
+            ),
+        )
+    });
+    report.debug_colors = Some(DebugColorsReport {
+        primitives,
+        material,
+        vertices_added,
+        classes,
+    });
 }
 
 /// What the plan knows of a primitive, before any action.
@@ -755,6 +896,8 @@ fn why_storage_changed(
 struct JobRefs {
     /// The TANGENT accessor, and for a quantized one its type and the largest angle it added.
     tangent: Option<(Ref, Option<(Snorm, f32)>)>,
+    /// With debug colours, COLOR_0.
+    color: Option<Ref>,
     normal: Option<Ref>,
     indices: Option<Ref>,
     deltas: HashMap<usize, Ref>,
@@ -786,9 +929,9 @@ impl Edits {
         c: &Computed,
         snorm: Option<TangentStorage>,
     ) -> Result<PrimitiveEdit, SceneError> {
-        let split = &c.tangents.split;
         // Decoded accessors have no data in the file: the primitive's are all written anew.
         let keeps = c.keeps_vertices(topology) && !reads_decoded(primitive, scene.data.decoded);
+        let painting = scene.painted.get(job).is_some();
         let refs = self.job_refs.entry(job).or_default();
         let changes = &mut self.changes;
         let (tangent, _) = *refs
@@ -800,10 +943,78 @@ impl Edits {
         };
         if !keeps {
             let attributes = primitive.get("attributes");
-            edit.attributes =
-                self.remap_members(scene, job, c, attributes, |key| key == "TANGENT")?;
+            edit.attributes = self.remap_members(scene, job, c, attributes, |key| {
+                key == "TANGENT" || (painting && key == "COLOR_0")
+            })?;
         }
         edit.attributes.push(("TANGENT".into(), tangent));
+        self.add_vertex_order(&mut edit, job, c, keeps, topology);
+        let targets = primitive
+            .get("targets")
+            .and_then(Node::as_array)
+            .unwrap_or(&[]);
+        for (t, target) in targets.iter().enumerate() {
+            edit.targets.push(self.edit_target(
+                scene,
+                job,
+                c,
+                (t, target),
+                keeps,
+                snorm.map(|s| s.snorm),
+            )?);
+        }
+        self.paint(scene, job, &mut edit);
+        Ok(edit)
+    }
+
+    /// With debug colours, the edit that paints a primitive whose own tangents are kept: its
+    /// members (TANGENT too) copied in the painted vertex order, COLOR_0 and the material.
+    /// `None` without debug colours: a kept primitive is otherwise left as it is.
+    fn paint_kept(
+        &mut self,
+        scene: &Scene<'_>,
+        primitive: &Node,
+        topology: Topology,
+        job: usize,
+        c: &Computed,
+    ) -> Result<Option<PrimitiveEdit>, SceneError> {
+        if scene.painted.get(job).is_none() {
+            return Ok(None);
+        }
+        let keeps = c.keeps_vertices(topology) && !reads_decoded(primitive, scene.data.decoded);
+        let mut edit = PrimitiveEdit {
+            remove_draco: draco::extension(primitive).is_some(),
+            ..PrimitiveEdit::default()
+        };
+        if !keeps {
+            let attributes = primitive.get("attributes");
+            edit.attributes =
+                self.remap_members(scene, job, c, attributes, |key| key == "COLOR_0")?;
+            let targets = primitive
+                .get("targets")
+                .and_then(Node::as_array)
+                .unwrap_or(&[]);
+            for target in targets {
+                let set = self.remap_members(scene, job, c, Some(target), |_| false)?;
+                edit.targets.push(set);
+            }
+        }
+        self.add_vertex_order(&mut edit, job, c, keeps, topology);
+        self.paint(scene, job, &mut edit);
+        Ok(Some(edit))
+    }
+
+    /// The job's generated normals, and unless the vertices are kept, its index buffer (and a
+    /// triangle list's mode).
+    fn add_vertex_order(
+        &mut self,
+        edit: &mut PrimitiveEdit,
+        job: usize,
+        c: &Computed,
+        keeps: bool,
+        topology: Topology,
+    ) {
+        let split = &c.tangents.split;
         let refs = self.job_refs.entry(job).or_default();
         let changes = &mut self.changes;
         if let Some(normals) = &c.tangents.normals {
@@ -819,21 +1030,20 @@ impl Edits {
             edit.indices = Some(r);
             edit.to_triangle_list = topology != Topology::Triangles;
         }
-        let targets = primitive
-            .get("targets")
-            .and_then(Node::as_array)
-            .unwrap_or(&[]);
-        for (t, target) in targets.iter().enumerate() {
-            edit.targets.push(self.edit_target(
-                scene,
-                job,
-                c,
-                (t, target),
-                keeps,
-                snorm.map(|s| s.snorm),
-            )?);
-        }
-        Ok(edit)
+    }
+
+    /// With debug colours, the job's COLOR_0 and the debug material (the first new one).
+    fn paint(&mut self, scene: &Scene<'_>, job: usize, edit: &mut PrimitiveEdit) {
+        let Some(painted) = scene.painted.get(job) else {
+            return;
+        };
+        let refs = self.job_refs.entry(job).or_default();
+        let changes = &mut self.changes;
+        let r = *refs
+            .color
+            .get_or_insert_with(|| changes.add_floats(&painted.colors, false));
+        edit.attributes.push(("COLOR_0".into(), r));
+        edit.material = Some(0);
     }
 
     /// One morph target's members: remapped like the base attributes, and its TANGENT deltas

@@ -74,6 +74,8 @@ pub struct PrimitiveEdit {
     pub targets: Vec<Vec<(String, Ref)>>,
     /// Remove `KHR_draco_mesh_compression`: its compressed data no longer matches.
     pub remove_draco: bool,
+    /// Point `material` at this one of [`Changes::materials`].
+    pub material: Option<usize>,
 }
 
 /// New accessors and views, and the changes to primitives, collected before anything is
@@ -83,6 +85,11 @@ pub struct Changes {
     views: Vec<NewView>,
     accessors: Vec<NewAccessor>,
     pub primitives: BTreeMap<(usize, usize), PrimitiveEdit>,
+    /// Materials to append, as JSON text, in order.
+    pub materials: Vec<String>,
+    /// Extensions the added materials use: listed in `extensionsUsed` (not required: a viewer
+    /// without them still shows the scene).
+    pub extensions_used: Vec<&'static str>,
 }
 
 impl Changes {
@@ -498,7 +505,15 @@ pub fn write(
     }
     append_buffer_views(&mut editor, root, changes, &images, &layout)?;
     renumber_accessor_refs(&mut editor, &references, &numbering, changes)?;
-    edit_primitives(&mut editor, root, &numbering, changes, &mut warnings)?;
+    let first_new_material = append_materials(&mut editor, root, changes)?;
+    edit_primitives(
+        &mut editor,
+        root,
+        &numbering,
+        changes,
+        first_new_material,
+        &mut warnings,
+    )?;
     point_images_at_views(
         &mut editor,
         root,
@@ -526,6 +541,7 @@ pub fn write(
             list_meshopt(&mut editor, root, packed)?;
         }
     }
+    list_material_extensions(&mut editor, root, changes)?;
     let compressed_views = layout
         .packed
         .as_ref()
@@ -1172,6 +1188,46 @@ fn renumber_accessor_refs(
     Ok(())
 }
 
+/// Appends the new materials; returns the index the first one gets.
+fn append_materials(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    changes: &Changes,
+) -> Result<usize, SceneError> {
+    let first = root
+        .get("materials")
+        .and_then(Node::as_array)
+        .map_or(0, <[Node]>::len);
+    for material in &changes.materials {
+        editor
+            .push_to_array_member(root, "materials", material.clone())
+            .map_err(edit_error)?;
+    }
+    Ok(first)
+}
+
+/// Lists the extensions the new materials use in `extensionsUsed`. Runs after every other
+/// edit of the list: a list that loses its last name (Draco's) is removed as a member, and the
+/// editor then starts a new one.
+fn list_material_extensions(
+    editor: &mut Editor<'_, '_>,
+    root: &Node,
+    changes: &Changes,
+) -> Result<(), SceneError> {
+    let listed = root
+        .get("extensionsUsed")
+        .and_then(Node::as_array)
+        .unwrap_or(&[]);
+    for &name in &changes.extensions_used {
+        if !listed.iter().any(|n| n.as_str() == Some(name)) {
+            editor
+                .push_to_array_member(root, "extensionsUsed", json::escape_str(name))
+                .map_err(edit_error)?;
+        }
+    }
+    Ok(())
+}
+
 /// Applies every primitive's edit; when no primitive keeps Draco data, the extension leaves
 /// `extensionsUsed` too.
 fn edit_primitives(
@@ -1179,6 +1235,7 @@ fn edit_primitives(
     root: &Node,
     numbering: &Numbering,
     changes: &Changes,
+    first_new_material: usize,
     warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
     let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
@@ -1200,6 +1257,15 @@ fn edit_primitives(
                 continue;
             };
             apply_primitive_edit(editor, primitive, edit, numbering)?;
+            if let Some(material) = edit.material {
+                editor
+                    .set_member(
+                        primitive,
+                        "material",
+                        (first_new_material + material).to_string(),
+                    )
+                    .map_err(edit_error)?;
+            }
             draco_left |= has_draco && !edit.remove_draco;
         }
     }
