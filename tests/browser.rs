@@ -1,9 +1,11 @@
 //! The page at `/` in a real browser: `tools/browser/page-test.mjs` drives Debian's chromium
 //! (software WebGL) with playwright-core against a server started here, choosing
 //! NormalTangentMirrorTest's .gltf and .bin (the counts `/v1/analyze` gives, the UV picture, a
-//! download of the scene with tangents) and then the .gltf alone (the missing buffer's problem
-//! title), with no console errors; where `../shared/corpus` is present, DamagedHelmet, SciFiHelmet
-//! and spot too (the counts, a 3D view). Screenshots go to `target/browser-screenshots`.
+//! 3D view that is not blank, with the mirrored triangles highlighted as the debug report counts
+//! them, downloads of the scene with tangents and of the debug-coloured scene) and then the
+//! .gltf alone (the missing buffer's problem title), with no console errors; where
+//! `../shared/corpus` is present, DamagedHelmet, SciFiHelmet and spot too (the counts, a 3D view,
+//! the highlights). Screenshots go to `target/browser-screenshots`.
 //!
 //! Skips, printing one line, where `scripts/install-browser` could not install chromium or
 //! playwright-core; set `TSPACE_REQUIRE_BROWSER=1` to make that a failure.

@@ -26,6 +26,38 @@ function check(condition, message) {
   if (!condition) throw new Error(message);
 }
 
+// The highlighted triangles the 3D view counted from the debug scene's COLOR_0, against the
+// debug report's counts the page's key shows: they must be the same, class by class.
+async function checkHighlights(page, name) {
+  const counted = JSON.parse(await page.getAttribute("#view", "data-highlighted"));
+  const keys = await page.$$eval("#highlight-key .key", (spans) =>
+    spans.map((k) => [k.dataset.class, Number(k.dataset.triangles)]));
+  const reported = Object.fromEntries(keys);
+  for (const [cls, n] of Object.entries(counted)) {
+    check((reported[cls] || 0) === n, `${name}: the view highlights ${n} ${cls} triangles, the report counts ${reported[cls] || 0}`);
+  }
+  for (const [cls, n] of keys) {
+    check(counted[cls] === n, `${name}: the report counts ${n} ${cls} triangles, the view highlights ${counted[cls]}`);
+  }
+  return counted;
+}
+
+// A sample of the 3D view's pixels, to tell two renderings apart.
+async function viewPixels(page) {
+  return page.evaluate(() => {
+    const view = document.getElementById("view");
+    const copy = document.createElement("canvas");
+    copy.width = view.width;
+    copy.height = view.height;
+    const context = copy.getContext("2d");
+    context.drawImage(view, 0, 0);
+    const pixels = context.getImageData(0, 0, copy.width, copy.height).data;
+    const sample = [];
+    for (let i = 0; i < pixels.length; i += 4 * 97) sample.push(`${pixels[i]},${pixels[i + 1]},${pixels[i + 2]}`);
+    return sample;
+  });
+}
+
 const mirror = join(fixtures, "NormalTangentMirrorTest");
 const gltf = join(mirror, "NormalTangentMirrorTest.gltf");
 const bin = join(mirror, "NormalTangentMirrorTest.bin");
@@ -76,19 +108,20 @@ try {
   check((await picture.jsonValue()) > 0, "the UV layout did not load");
   // The 3D view: drawn, not blank (more than a handful of colours), with tangent frames.
   await page.waitForSelector("#view[data-view=ready]", { timeout: 60000 });
-  const colours = await page.evaluate(() => {
-    const view = document.getElementById("view");
-    const copy = document.createElement("canvas");
-    copy.width = view.width;
-    copy.height = view.height;
-    const context = copy.getContext("2d");
-    context.drawImage(view, 0, 0);
-    const pixels = context.getImageData(0, 0, copy.width, copy.height).data;
-    const seen = new Set();
-    for (let i = 0; i < pixels.length; i += 4 * 97) seen.add(`${pixels[i]},${pixels[i + 1]},${pixels[i + 2]}`);
-    return seen.size;
-  });
+  const highlighted = await viewPixels(page);
+  const colours = new Set(highlighted).size;
   check(colours > 50, `the 3D view looks blank (${colours} colours)`);
+  // Problem triangles: the mirrored ones /v1/analyze counts are highlighted, and the highlights
+  // show (the view changes when they are turned off).
+  const counted = await checkHighlights(page, "mirror");
+  check(counted.mirrored_uv === expected.mirrored_uv_triangles,
+    `the view highlights ${counted.mirrored_uv} mirrored triangles, /v1/analyze counts ${expected.mirrored_uv_triangles}`);
+  await page.locator("#view").screenshot({ path: join(shots, "view-mirror-highlights.png") });
+  await page.uncheck("#highlight");
+  const plain = await viewPixels(page);
+  const changed = plain.filter((p, i) => p !== highlighted[i]).length;
+  check(changed > 0, "turning the highlights off changes nothing in the view");
+  await page.check("#highlight");
   const frameCount = Number(await page.getAttribute("#view", "data-frames"));
   check(frameCount > 0, "no tangent frames drawn");
   await page.locator("#view").screenshot({ path: join(shots, "view-mirror.png") });
@@ -100,6 +133,17 @@ try {
   const jsonLength = glb.readUInt32LE(12);
   const document = JSON.parse(glb.toString("utf8", 20, 20 + jsonLength));
   check(document.meshes[0].primitives[0].attributes.TANGENT !== undefined, "the downloaded scene has no TANGENT");
+  // The debug-coloured scene: COLOR_0, the unlit material, and a name that says what it is.
+  const [debugDownload] = await Promise.all([page.waitForEvent("download"), page.click("#download-debug")]);
+  check(debugDownload.suggestedFilename().endsWith(".debug.glb"), `debug download named ${debugDownload.suggestedFilename()}`);
+  const debugSaved = join(shots, debugDownload.suggestedFilename());
+  await debugDownload.saveAs(debugSaved);
+  const debugGlb = readFileSync(debugSaved);
+  const debugDocument = JSON.parse(debugGlb.toString("utf8", 20, 20 + debugGlb.readUInt32LE(12)));
+  const painted = debugDocument.meshes[0].primitives[0];
+  check(painted.attributes.COLOR_0 !== undefined, "the debug scene has no COLOR_0");
+  check(debugDocument.materials[painted.material].extensions.KHR_materials_unlit !== undefined,
+    "the debug scene's material is not unlit");
   await page.screenshot({ path: join(shots, "page-mirror.png"), fullPage: true });
 
   // The corpus's assets, where it is present: the counts, and a 3D view that is not blank.
@@ -118,6 +162,8 @@ try {
     const wanted = await expectedSummary(files);
     const shown = (await page.textContent("#summary-triangles")).replace(/,/g, "");
     check(shown === String(wanted.triangles), `${name}: page shows ${shown} triangles, /v1/analyze ${wanted.triangles}`);
+    const marked = await checkHighlights(page, name);
+    check(marked.mirrored_uv > 0 === wanted.mirrored_uv_triangles > 0, `${name}: mirrored triangles highlighted: ${marked.mirrored_uv}`);
     await page.locator("#view").screenshot({ path: join(shots, `view-${name}.png`) });
     await page.screenshot({ path: join(shots, `page-${name}.png`), fullPage: true });
   }

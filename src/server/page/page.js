@@ -52,9 +52,9 @@ function upload() {
   return { form, main };
 }
 
-async function call(path, params) {
+async function call(path, params, accept) {
   const { form } = upload();
-  const headers = {};
+  const headers = accept ? { Accept: accept } : {};
   const key = $("api-key").value.trim();
   if (key) headers.Authorization = `Bearer ${key}`;
   const response = await fetch(`${path}?${query(params)}`, { method: "POST", body: form, headers });
@@ -67,6 +67,59 @@ async function call(path, params) {
     throw { title: `${response.status} ${response.statusText}`, detail: await response.text() };
   }
   return response;
+}
+
+// The report and the scene of a multipart/mixed answer (see src/server/mixed.rs): each part's
+// headers end at a blank line, and its body at CRLF and the next delimiter.
+async function reportAndScene(response) {
+  const boundary = /boundary=([^;\s]+)/.exec(response.headers.get("content-type") || "");
+  if (!boundary) throw { title: "Unexpected answer", detail: "the service sent no multipart boundary" };
+  const bytes = new Uint8Array(await response.arrayBuffer());
+  const encode = (text) => new TextEncoder().encode(text);
+  const find = (needle, from) => {
+    outer: for (let i = from; i + needle.length <= bytes.length; i++) {
+      for (let k = 0; k < needle.length; k++) if (bytes[i + k] !== needle[k]) continue outer;
+      return i;
+    }
+    return -1;
+  };
+  const delimiter = encode(`\r\n--${boundary[1]}`);
+  const blank = encode("\r\n\r\n");
+  const part = (from) => {
+    const start = find(blank, from) + blank.length;
+    const end = find(delimiter, start);
+    if (start < blank.length || end < 0) throw { title: "Unexpected answer", detail: "a part of the multipart answer is cut short" };
+    return [start, end];
+  };
+  const [reportStart, reportEnd] = part(0);
+  const [sceneStart, sceneEnd] = part(reportEnd + delimiter.length);
+  return {
+    report: JSON.parse(new TextDecoder().decode(bytes.subarray(reportStart, reportEnd))),
+    scene: new Blob([bytes.subarray(sceneStart, sceneEnd)], { type: "model/gltf-binary" }),
+  };
+}
+
+// The 3D view's key to the highlighted classes, with the debug report's counts.
+function renderHighlightKey(debugColors) {
+  const names = {
+    mirrored_uv: "mirrored UVs",
+    repaired_tangent: "repaired tangents",
+    zero_uv_area: "zero UV area",
+    degenerate: "degenerate",
+  };
+  const keys = (debugColors ? debugColors.classes : [])
+    .filter((c) => c.class !== "ordinary" && c.triangles > 0)
+    .map((c) => {
+      const key = document.createElement("span");
+      key.className = "key";
+      key.style.background = c.color;
+      key.dataset.class = c.class;
+      key.dataset.triangles = String(c.triangles);
+      key.textContent = `${names[c.class] || c.class}: ${c.triangles.toLocaleString("en")}`;
+      return key;
+    });
+  if (keys.length === 0) keys.push(document.createTextNode("none"));
+  $("highlight-key").replaceChildren(...keys);
 }
 
 function fail(problem) {
@@ -173,15 +226,21 @@ async function run(event) {
       picture.alt = problem.detail || "no layout";
     }
     $("status").textContent = "Writing the scene…";
-    const scene = await (await call("/v1/tangents")).blob();
+    // The scene to ship and the same scene painted by class, for the highlights, side by side.
+    const [scene, debug] = await Promise.all([
+      call("/v1/tangents").then((r) => r.blob()),
+      call("/v1/tangents", { debug: "colors" }, "multipart/mixed").then(reportAndScene),
+    ]);
     const stem = main.name.replace(/\.[^.]*$/, "");
     link($("download-scene"), scene, `${stem}.tspace.glb`);
+    link($("download-debug"), debug.scene, `${stem}.debug.glb`);
+    renderHighlightKey(debug.report.debug_colors);
     $("results").hidden = false;
     $("status").textContent = "Drawing the scene in 3D…";
     try {
       // Loaded when first needed, so that a browser without WebGL still gets the rest.
       const { showScene } = await import("/page/view.js");
-      await showScene($("view"), await scene.arrayBuffer());
+      await showScene($("view"), await scene.arrayBuffer(), await debug.scene.arrayBuffer());
       $("status").textContent = `Done: ${main.name}`;
     } catch (error) {
       $("status").textContent = `Done: ${main.name} (no 3D view: ${error.message || error})`;

@@ -7,6 +7,18 @@ import * as THREE from "/page/vendor/three.min.js";
 const PLUS = new THREE.Color(0x0072b2);
 const MINUS = new THREE.Color(0xd55e00);
 const NORMAL = new THREE.Color(0x009e73);
+// The debug scene's classes (debug=colors), as COLOR_0 holds them: linear, which is what
+// THREE.Color makes of an sRGB hex. Ordinary triangles are not highlighted.
+const ORDINARY = new THREE.Color(0xc9c9c9);
+const CLASSES = [
+  ["mirrored_uv", new THREE.Color(0x56b4e9)],
+  ["repaired_tangent", new THREE.Color(0xcc79a7)],
+  ["zero_uv_area", new THREE.Color(0xe69f00)],
+  ["degenerate", new THREE.Color(0xd55e00)],
+];
+// Classes whose triangles are usually few and small (or have no area at all): each also gets
+// a marker that keeps its size on screen, so that it can be found.
+const MARKED = new Set(["repaired_tangent", "zero_uv_area", "degenerate"]);
 // Enough frames to read a seam, few enough to draw at once on a software renderer.
 const MAX_FRAMES = 20000;
 
@@ -74,6 +86,80 @@ function frames(mesh, length) {
   return segments;
 }
 
+// The class of a COLOR_0 value, or null for ordinary (or any colour that is not a class's).
+function classOf(r, g, b) {
+  const near = (c) => Math.abs(c.r - r) < 2e-3 && Math.abs(c.g - g) < 2e-3 && Math.abs(c.b - b) < 2e-3;
+  if (near(ORDINARY)) return null;
+  for (const [name, colour] of CLASSES) if (near(colour)) return name;
+  return null;
+}
+
+// From the debug-coloured scene (the same scene, painted by class): every mesh reduced to its
+// problem triangles, drawn over the shaded view in their class colours, markers for the small
+// ones, and the triangles of each class counted once per geometry, as the report counts them.
+function highlights(debugScene) {
+  const counts = Object.fromEntries(CLASSES.map(([name]) => [name, 0]));
+  const counted = new Set();
+  const overlays = [];
+  const markerPoints = [];
+  const markerColours = [];
+  const material = new THREE.MeshBasicMaterial({
+    vertexColors: true, side: THREE.DoubleSide, transparent: true, opacity: 0.75, depthWrite: false,
+    polygonOffset: true, polygonOffsetFactor: -2, polygonOffsetUnits: -2,
+  });
+  const corner = new THREE.Vector3(), centre = new THREE.Vector3();
+  debugScene.updateMatrixWorld(true);
+  debugScene.traverse((object) => {
+    if (!object.isMesh) return;
+    const geometry = object.geometry;
+    const colour = geometry.getAttribute("color");
+    const position = geometry.getAttribute("position");
+    if (!colour || !position) return;
+    const index = geometry.getIndex();
+    const corners = index ? index.count : position.count;
+    const vertex = (c) => (index ? index.getX(c) : c);
+    const first = !counted.has(geometry.uuid);
+    counted.add(geometry.uuid);
+    const kept = [];
+    for (let c = 0; c + 2 < corners; c += 3) {
+      const v = vertex(c);
+      const name = classOf(colour.getX(v), colour.getY(v), colour.getZ(v));
+      if (!name) continue;
+      if (first) counts[name]++;
+      kept.push(vertex(c), vertex(c + 1), vertex(c + 2));
+      if (MARKED.has(name)) {
+        centre.set(0, 0, 0);
+        for (let k = 0; k < 3; k++) centre.add(corner.fromBufferAttribute(position, vertex(c + k)));
+        centre.divideScalar(3).applyMatrix4(object.matrixWorld);
+        markerPoints.push(centre.x, centre.y, centre.z);
+        markerColours.push(colour.getX(v), colour.getY(v), colour.getZ(v));
+      }
+    }
+    if (kept.length === 0) return;
+    const problems = new THREE.BufferGeometry();
+    problems.setAttribute("position", position);
+    problems.setAttribute("color", colour);
+    problems.setIndex(kept);
+    const overlay = new THREE.Mesh(problems, material);
+    overlay.matrixAutoUpdate = false;
+    overlay.matrix.copy(object.matrixWorld);
+    overlays.push(overlay);
+  });
+  const group = new THREE.Group();
+  for (const overlay of overlays) group.add(overlay);
+  if (markerPoints.length) {
+    const markers = new THREE.BufferGeometry();
+    markers.setAttribute("position", new THREE.Float32BufferAttribute(markerPoints, 3));
+    markers.setAttribute("color", new THREE.Float32BufferAttribute(markerColours, 3));
+    const points = new THREE.Points(markers, new THREE.PointsMaterial({
+      size: 7, sizeAttenuation: false, vertexColors: true, depthTest: false,
+    }));
+    points.renderOrder = 2;
+    group.add(points);
+  }
+  return { group, counts, markers: markerPoints.length / 3 };
+}
+
 function setup(canvas) {
   const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
   renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
@@ -95,7 +181,12 @@ function setup(canvas) {
     if (state && state.frames) state.frames.visible = frameToggle.checked;
     render();
   });
-  return { renderer, camera, controls, render, frameToggle };
+  const highlightToggle = document.getElementById("highlight");
+  highlightToggle.addEventListener("change", () => {
+    if (state && state.highlights) state.highlights.visible = highlightToggle.checked;
+    render();
+  });
+  return { renderer, camera, controls, render, frameToggle, highlightToggle };
 }
 
 // A 1×1 grey image for every texture the scene names but did not carry (images not supplied):
@@ -105,12 +196,15 @@ function placeholderImage() {
   return URL.createObjectURL(new Blob([png], { type: "image/png" }));
 }
 
-export async function showScene(canvas, glb) {
+// `glb` is the scene tspace wrote, `debugGlb` the same scene written with debug=colors (or
+// null): its problem triangles are drawn over the first.
+export async function showScene(canvas, glb, debugGlb) {
   if (!state) state = { ...setup(canvas), placeholder: placeholderImage() };
   const manager = new THREE.LoadingManager();
   manager.setURLModifier((url) => (url.startsWith("blob:") ? url : state.placeholder));
   const loader = new THREE.GLTFLoader(manager);
   const gltf = await loader.parseAsync(glb, "");
+  const debug = debugGlb ? await loader.parseAsync(debugGlb, "") : null;
   const scene = new THREE.Scene();
   scene.background = new THREE.Color(0xf4f4f4);
   scene.add(new THREE.HemisphereLight(0xffffff, 0x444444, 1.6));
@@ -135,8 +229,12 @@ export async function showScene(canvas, glb) {
   });
   all.visible = state.frameToggle.checked;
   scene.add(all);
+  const marked = debug ? highlights(debug.scene) : { group: new THREE.Group(), counts: {}, markers: 0 };
+  marked.group.visible = state.highlightToggle.checked;
+  scene.add(marked.group);
   state.scene = scene;
   state.frames = all;
+  state.highlights = marked.group;
   const { camera, controls } = state;
   camera.near = size / 1000;
   camera.far = size * 100;
@@ -146,5 +244,7 @@ export async function showScene(canvas, glb) {
   controls.update();
   state.render();
   canvas.dataset.frames = String(all.children.reduce((n, l) => n + l.geometry.getAttribute("position").count / 6, 0));
+  canvas.dataset.highlighted = JSON.stringify(marked.counts);
+  canvas.dataset.markers = String(marked.markers);
   canvas.dataset.view = "ready";
 }
