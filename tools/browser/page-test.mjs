@@ -176,6 +176,8 @@ try {
   await page.waitForSelector("#error:not([hidden])", { timeout: 30000 });
   const title = await page.textContent("#error-title");
   check(title === "A file the scene refers to was not supplied", `error title: ${title}`);
+  const advice = await page.textContent("#error-hint");
+  check(advice.includes("“NormalTangentMirrorTest.bin”"), `error hint: ${advice}`);
   await page.screenshot({ path: join(shots, "page-missing-buffer.png"), fullPage: true });
   // The failed request is the browser's own console error ("Failed to load resource: 422");
   // anything else is the page's.

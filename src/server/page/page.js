@@ -62,7 +62,7 @@ async function call(path, params, accept) {
     const type = response.headers.get("content-type") || "";
     if (type.startsWith("application/problem+json")) {
       const problem = await response.json();
-      throw { title: problem.title, detail: problem.detail, status: response.status };
+      throw { title: problem.title, detail: problem.detail, status: response.status, code: problem.code };
     }
     throw { title: `${response.status} ${response.statusText}`, detail: await response.text() };
   }
@@ -122,9 +122,20 @@ function renderHighlightKey(debugColors) {
   $("highlight-key").replaceChildren(...keys);
 }
 
+// What to do on this page about a problem whose detail speaks of requests and parts.
+function hint(problem) {
+  if (problem.code !== "missing-resource") return "";
+  const named = /refers to "([^"]+)"/.exec(problem.detail || "");
+  const file = named ? `“${named[1]}”` : "the files it names";
+  return `Choose ${file} together with the scene: select all of the scene's files at once, or drop them together.`;
+}
+
 function fail(problem) {
   $("error-title").textContent = problem.title || "Something went wrong";
   $("error-detail").textContent = problem.detail || String(problem);
+  const advice = hint(problem);
+  $("error-hint").textContent = advice;
+  $("error-hint").hidden = !advice;
   $("error").hidden = false;
   $("status").textContent = "";
 }
