@@ -496,6 +496,44 @@ pub struct Processed {
     pub report: Report,
     /// With [`SceneOptions::layouts`]: the texture layout of every geometry that was computed.
     pub layouts: Vec<super::layout::Layout>,
+    /// How long each step took, in order: for benchmarks and profiling, never in the report
+    /// (which must not change from run to run).
+    pub timings: Timings,
+}
+
+/// Wall-clock time per step of one scene, in the order the steps ran.
+#[derive(Clone, Debug, Default)]
+pub struct Timings {
+    pub steps: Vec<(&'static str, std::time::Duration)>,
+    last: Option<std::time::Instant>,
+}
+
+impl Timings {
+    /// Starts the clock for the first step.
+    pub fn start() -> Timings {
+        Timings {
+            steps: Vec::new(),
+            last: Some(std::time::Instant::now()),
+        }
+    }
+
+    /// Ends the step `name` (begun when the previous one ended) and starts the next.
+    pub fn lap(&mut self, name: &'static str) {
+        let now = std::time::Instant::now();
+        if let Some(last) = self.last {
+            self.steps.push((name, now - last));
+        }
+        self.last = Some(now);
+    }
+
+    /// The time of the step `name`, summed if it ran more than once.
+    pub fn of(&self, name: &str) -> std::time::Duration {
+        self.steps
+            .iter()
+            .filter(|(n, _)| *n == name)
+            .map(|(_, d)| *d)
+            .sum()
+    }
 }
 
 #[cfg(test)]

@@ -260,16 +260,32 @@ pub fn write(
     bin: Option<&[u8]>,
     other_chunks: &[Chunk<'_>],
 ) -> Result<Vec<u8>, GlbError> {
-    let chunks: Vec<(u32, &[u8], u8)> = std::iter::once((CHUNK_JSON, json, b' '))
+    write_pieces(json, bin.as_ref().map(std::slice::from_ref), other_chunks)
+}
+
+/// [`write`], with the BIN chunk given as the pieces it is made of, in order: each byte is
+/// copied once, into the file, however the chunk was laid out.
+pub fn write_pieces(
+    json: &[u8],
+    bin: Option<&[&[u8]]>,
+    other_chunks: &[Chunk<'_>],
+) -> Result<Vec<u8>, GlbError> {
+    let json_piece = [json];
+    let chunks: Vec<(u32, &[&[u8]], u8)> = std::iter::once((CHUNK_JSON, &json_piece[..], b' '))
         .chain(bin.map(|b| (CHUNK_BIN, b, 0)))
-        .chain(other_chunks.iter().map(|c| (c.kind, c.data, 0)))
+        .chain(
+            other_chunks
+                .iter()
+                .map(|c| (c.kind, std::slice::from_ref(&c.data), 0)),
+        )
         .collect();
+    let length = |pieces: &[&[u8]]| pieces.iter().map(|p| p.len() as u64).sum::<u64>();
 
     // Lengths come from slices that exist, so u64 cannot overflow; the format's u32 can.
     let total: u64 = HEADER_LEN as u64
         + chunks
             .iter()
-            .map(|(_, data, _)| CHUNK_HEADER_LEN as u64 + padded_len(data.len() as u64))
+            .map(|(_, pieces, _)| CHUNK_HEADER_LEN as u64 + padded_len(length(pieces)))
             .sum::<u64>();
     let too_large = GlbError::TooLarge { bytes: total };
     let total_u32 = u32::try_from(total).map_err(|_| too_large.clone())?;
@@ -279,13 +295,16 @@ pub fn write(
     out.extend_from_slice(&MAGIC.to_le_bytes());
     out.extend_from_slice(&VERSION.to_le_bytes());
     out.extend_from_slice(&total_u32.to_le_bytes());
-    for (kind, data, pad) in chunks {
+    for (kind, pieces, pad) in chunks {
+        let len = length(pieces);
         // Each padded length is at most the total, which fits in u32.
-        let padded = padded_len(data.len() as u64) as u32;
+        let padded = padded_len(len) as u32;
         out.extend_from_slice(&padded.to_le_bytes());
         out.extend_from_slice(&kind.to_le_bytes());
-        out.extend_from_slice(data);
-        out.resize(out.len() + (padded as usize - data.len()), pad);
+        for piece in pieces {
+            out.extend_from_slice(piece);
+        }
+        out.resize(out.len() + (padded as usize - len as usize), pad);
     }
     Ok(out)
 }

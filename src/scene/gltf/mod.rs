@@ -19,7 +19,7 @@ pub mod write;
 
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::layout::{Layout, PrimitiveRef};
-use crate::scene::options::Debug;
+use crate::scene::options::{Debug, Timings};
 use crate::scene::report::{
     DebugClassReport, DebugColorsReport, MorphReport, Notice, PrimitiveReport, Report,
     StorageReport, TangentReport, thousands,
@@ -82,20 +82,25 @@ pub fn process_with<'a>(
     };
     // Between steps, work nobody waits for any more stops (see SceneOptions::cancel).
     let cancel = &options.cancel;
+    let mut timings = Timings::start();
     let loaded = load::load(bytes, resources, &load_limits)?;
+    timings.lap("load");
     SceneError::check(cancel)?;
     let root = loaded.doc.root();
     let plans = plan::plan(root, &plan_options(options, internal));
     let jobs = plan_jobs(&plans, options.method);
     check_triangle_budget(root, &jobs.list, limits.max_triangles)?;
     let buffers = loaded.buffer_slices();
+    timings.lap("plan");
     let decoded = decode_draco(root, &plans, &jobs, &buffers, options)?;
+    timings.lap("decode draco");
     SceneError::check(cancel)?;
     let data = Data {
         buffers: &buffers,
         decoded: &decoded,
     };
     let mut computed = compute_jobs(root, &jobs.list, data, options)?;
+    timings.lap("compute");
     SceneError::check(cancel)?;
     let painting = options.write && options.debug == Debug::Colors;
     let marks = if options.layouts || painting {
@@ -117,6 +122,7 @@ pub fn process_with<'a>(
     } else {
         Vec::new()
     };
+    timings.lap("marks");
     let scene = Scene {
         cancel,
         root,
@@ -133,6 +139,7 @@ pub fn process_with<'a>(
     if painting {
         report_painting(&mut report, root, &painted, &mut edits);
     }
+    timings.lap("report and edits");
     SceneError::check(cancel)?;
     let bytes = write_scene(
         bytes,
@@ -142,12 +149,15 @@ pub fn process_with<'a>(
         resources,
         &mut report,
     )?;
+    timings.lap("write");
     report_storage(&mut report, root, bytes.as_deref(), options.format)?;
     report.finish();
+    timings.lap("storage report");
     Ok(Processed {
         bytes,
         report,
         layouts,
+        timings,
     })
 }
 

@@ -1,0 +1,569 @@
+//! The whole path against the cores (issue 20): `tspace process` as a whole process, the same
+//! steps in this process phase by phase, and `POST /v1/tangents`, each beside meshoptimizer's
+//! `Compatible` core and bevy_mikktspace run on the same mesh in this process, with the ratios
+//! the issue sets as targets and the child's peak RSS.
+//!
+//! `cargo bench --bench whole_path`. Scenes: a generated UV sphere of 2M triangles (56 MB GLB),
+//! the corpus's DamagedHelmet when `../shared/corpus` is present. Settings:
+//! - `TSPACE_BENCH_QUICK=1`: a 200k sphere and few samples (a smoke test of the bench itself);
+//! - `TSPACE_BENCH_SECONDS` (default 5): how long each HTTP load level runs;
+//! - `TSPACE_BENCH_FILTER=sphere`, or a plain argument: only scenes whose name contains it.
+//!
+//! Every figure is a median over runs interleaved in rounds (each round runs every contender
+//! once, in rotating order), so that background load on a small machine hits them alike. The
+//! ratios are the issue's: above 1 is tspace ahead, except the scene layer's share of the core
+//! (at most 0.5) and HTTP over in-process (at most 1.2).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tspace::config::ServerConfig;
+use tspace::scene::SceneOptions;
+use tspace::scene::gltf::load::NoResources;
+use tspace::scene::input::{self, InputKind};
+use tspace_testkit::shapes;
+
+#[allow(dead_code)]
+#[path = "support/contenders.rs"]
+mod contenders;
+#[allow(dead_code)]
+#[path = "support/corpus.rs"]
+mod corpus;
+
+use contenders::{BenchMesh, Contender, Family};
+
+/// Targets from the issue.
+const TARGET_CLI_OVER_MESHOPT: f64 = 1.0;
+const TARGET_CLI_OVER_BEVY: f64 = 35.0;
+const TARGET_SCENE_LAYER_SHARE: f64 = 0.5;
+const TARGET_HTTP_OVER_IN_PROCESS: f64 = 1.2;
+/// The whole-process targets apply to meshes this large (the issue's 2M sphere).
+const TARGETS_FROM_TRIANGLES: usize = 1_000_000;
+
+/// The scene layer runs the core in parallel above this many corners (see
+/// `src/scene/gltf/mod.rs`, `compute_jobs`), so its core time is the parallel one there.
+const PARALLEL_CORNERS: usize = 300_000;
+
+struct Config {
+    quick: bool,
+    filter: Option<String>,
+    http_seconds: u64,
+}
+
+impl Config {
+    fn from_env_and_args() -> Config {
+        let quick = std::env::var("TSPACE_BENCH_QUICK").is_ok_and(|v| !v.is_empty() && v != "0");
+        let filter = std::env::args()
+            .skip(1)
+            .find(|a| !a.starts_with('-'))
+            .or_else(|| std::env::var("TSPACE_BENCH_FILTER").ok())
+            .filter(|f| !f.is_empty());
+        let http_seconds = std::env::var("TSPACE_BENCH_SECONDS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(if quick { 1 } else { 5 });
+        Config {
+            quick,
+            filter,
+            http_seconds,
+        }
+    }
+
+    fn rounds(&self, triangles: usize) -> usize {
+        match (self.quick, triangles > 1_000_000) {
+            (true, _) => 3,
+            (false, true) => 7,
+            (false, false) => 15,
+        }
+    }
+}
+
+/// A scene as a file for the command line and as a mesh for the cores.
+struct Scene {
+    name: String,
+    file: PathBuf,
+    kind: InputKind,
+    bytes: Vec<u8>,
+    mesh: BenchMesh,
+}
+
+fn sphere(dir: &Path, quick: bool) -> Scene {
+    let (segments, rings) = if quick { (316, 317) } else { (1000, 1001) };
+    let shape = shapes::uv_sphere(segments, rings);
+    let bytes = tspace_testkit::glb_builder::shape_glb(&shape);
+    let name = format!("sphere {}", thousands(shape.triangle_count()));
+    let file = dir.join("sphere.glb");
+    write_input(&file, &bytes);
+    let mesh = BenchMesh {
+        name: name.clone(),
+        family: Family::Sphere,
+        nominal_triangles: None,
+        positions: shape.positions,
+        normals: shape.normals,
+        uvs: shape.uvs,
+        indices: shape.indices,
+        exact_tangents: None,
+    };
+    Scene {
+        name,
+        file,
+        kind: InputKind::Glb,
+        bytes,
+        mesh,
+    }
+}
+
+fn helmet(dir: &Path) -> Option<Scene> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/corpus/gltf_DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+    let bytes = std::fs::read(&path).ok()?;
+    let mesh = corpus::load("DamagedHelmet", &path).ok()?;
+    let file = dir.join("DamagedHelmet.glb");
+    write_input(&file, &bytes);
+    Some(Scene {
+        name: "DamagedHelmet".into(),
+        file,
+        kind: InputKind::Glb,
+        bytes,
+        mesh,
+    })
+}
+
+fn write_input(path: &Path, bytes: &[u8]) {
+    if let Err(e) = std::fs::write(path, bytes) {
+        panic!("cannot write {}: {e}", path.display());
+    }
+}
+
+fn thousands(n: usize) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    match values.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => values[n / 2],
+        n => (values[n / 2 - 1] + values[n / 2]) / 2.0,
+    }
+}
+
+/// One run of `tspace process IN -o OUT -q`: wall time and the child's peak RSS in bytes.
+///
+/// The peak comes from GNU time (`/usr/bin/time -f %M`) where it is installed: a child this
+/// bench spawned itself would report this process's size as its own, since the kernel's
+/// high-water mark survives `exec` and the child starts from a copy (or a share) of the parent's
+/// memory. GNU time is small, so what it reports is tspace's own.
+fn run_cli(scene: &Scene, out: &Path) -> (f64, Option<u64>) {
+    let time = Path::new("/usr/bin/time");
+    let mut command = if time.exists() {
+        let mut c = Command::new(time);
+        c.args(["-f", "peak-rss-kb %M", env!("CARGO_BIN_EXE_tspace")]);
+        c
+    } else {
+        Command::new(env!("CARGO_BIN_EXE_tspace"))
+    };
+    command
+        .arg("process")
+        .arg(&scene.file)
+        .arg("-o")
+        .arg(out)
+        .arg("-q");
+    let started = Instant::now();
+    let output = command.output().expect("tspace starts");
+    let wall = started.elapsed().as_secs_f64();
+    assert!(
+        output.status.success(),
+        "tspace process failed on {}: {}",
+        scene.name,
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let peak = String::from_utf8_lossy(&output.stderr)
+        .lines()
+        .find_map(|l| l.strip_prefix("peak-rss-kb ")?.trim().parse::<u64>().ok())
+        .map(|kb| kb * 1024);
+    (wall, peak)
+}
+
+/// The command line's steps in this process: read the file, process it (with the scene
+/// layer's own step timings), write the output.
+struct Phases {
+    read: f64,
+    steps: Vec<(&'static str, f64)>,
+    write: f64,
+}
+
+fn run_in_process(scene: &Scene, out: &Path) -> Phases {
+    let started = Instant::now();
+    let bytes = std::fs::read(&scene.file).expect("input readable");
+    let read = started.elapsed().as_secs_f64();
+    let processed = input::process(scene.kind, &bytes, &NoResources, &SceneOptions::default())
+        .expect("the scene processes");
+    let written = Instant::now();
+    std::fs::write(out, processed.bytes.as_deref().unwrap_or_default()).expect("output written");
+    let write = written.elapsed().as_secs_f64();
+    let steps = processed
+        .timings
+        .steps
+        .iter()
+        .map(|(name, d)| (*name, d.as_secs_f64()))
+        .collect();
+    let drop_started = Instant::now();
+    drop(processed);
+    drop(bytes);
+    let mut phases = Phases { read, steps, write };
+    phases
+        .steps
+        .push(("free", drop_started.elapsed().as_secs_f64()));
+    phases
+}
+
+fn time_core(contender: Contender, mesh: &BenchMesh) -> f64 {
+    let started = Instant::now();
+    let output = contenders::run(contender, mesh).expect("the core runs");
+    let seconds = started.elapsed().as_secs_f64();
+    drop(std::hint::black_box(output));
+    seconds
+}
+
+/// Everything measured on one scene.
+struct Measured {
+    cli: Vec<f64>,
+    cli_peak: Option<u64>,
+    phases: Vec<Phases>,
+    tspace_core: Vec<f64>,
+    meshopt: Vec<f64>,
+    bevy: Vec<f64>,
+}
+
+fn measure(scene: &Scene, dir: &Path, config: &Config) -> Measured {
+    let triangles = scene.mesh.triangle_count();
+    let core = if 3 * triangles > PARALLEL_CORNERS {
+        Contender::MikkParallel
+    } else {
+        Contender::MikkSingle
+    };
+    let out = dir.join("out.glb");
+    let mut m = Measured {
+        cli: Vec::new(),
+        cli_peak: None,
+        phases: Vec::new(),
+        tspace_core: Vec::new(),
+        meshopt: Vec::new(),
+        bevy: Vec::new(),
+    };
+    // Untimed warm-up: page cache, allocator, the binary.
+    run_cli(scene, &out);
+    let rounds = config.rounds(triangles);
+    // bevy_mikktspace takes seconds on 2M triangles: three runs settle its median.
+    let bevy_rounds = if triangles > 1_000_000 { 3 } else { rounds };
+    for round in 0..rounds {
+        for step in 0..5 {
+            match (round + step) % 5 {
+                0 => {
+                    let (wall, peak) = run_cli(scene, &out);
+                    m.cli.push(wall);
+                    m.cli_peak = m.cli_peak.max(peak);
+                }
+                1 => m.phases.push(run_in_process(scene, &out)),
+                2 => m.tspace_core.push(time_core(core, &scene.mesh)),
+                3 => m
+                    .meshopt
+                    .push(time_core(Contender::MeshoptCompatible, &scene.mesh)),
+                _ if round < bevy_rounds => m.bevy.push(time_core(Contender::Bevy, &scene.mesh)),
+                _ => {}
+            }
+        }
+    }
+    m
+}
+
+fn verdict(met: bool) -> &'static str {
+    if met { "met" } else { "NOT met" }
+}
+
+fn report(scene: &Scene, m: &Measured, csv: &mut String) {
+    let ms = |s: f64| s * 1e3;
+    let cli = median(m.cli.clone());
+    let core = median(m.tspace_core.clone());
+    let meshopt = median(m.meshopt.clone());
+    let bevy = median(m.bevy.clone());
+    let phase = |name: &str| {
+        median(
+            m.phases
+                .iter()
+                .map(|p| {
+                    p.steps
+                        .iter()
+                        .filter(|(n, _)| *n == name)
+                        .map(|(_, s)| s)
+                        .sum()
+                })
+                .collect(),
+        )
+    };
+    let read = median(m.phases.iter().map(|p| p.read).collect());
+    let write = median(m.phases.iter().map(|p| p.write).collect());
+    let names: Vec<&'static str> = m
+        .phases
+        .first()
+        .map(|p| p.steps.iter().map(|(n, _)| *n).collect())
+        .unwrap_or_default();
+    let in_process: f64 = median(
+        m.phases
+            .iter()
+            .map(|p| p.read + p.write + p.steps.iter().map(|(_, s)| s).sum::<f64>())
+            .collect(),
+    );
+    let compute = phase("compute");
+    let scene_layer = in_process - compute;
+    println!(
+        "\n{} ({} triangles, {:.1} MB in)",
+        scene.name,
+        thousands(scene.mesh.triangle_count()),
+        scene.bytes.len() as f64 / 1e6
+    );
+    println!("  tspace process (whole process)  {:>9.1} ms", ms(cli));
+    if let Some(peak) = m.cli_peak {
+        println!(
+            "    peak RSS                      {:>9.1} MB ({:.1}x the input)",
+            peak as f64 / 1e6,
+            peak as f64 / scene.bytes.len() as f64
+        );
+    }
+    println!("  the same in this process, by step:");
+    println!("    read the file                 {:>9.1} ms", ms(read));
+    for name in &names {
+        println!("    {name:<30}{:>9.1} ms", ms(phase(name)));
+    }
+    println!("    write the file                {:>9.1} ms", ms(write));
+    println!(
+        "    total                         {:>9.1} ms",
+        ms(in_process)
+    );
+    println!("  cores on the same mesh, in this process:");
+    println!("    tspace mikktspace             {:>9.1} ms", ms(core));
+    println!("    meshoptimizer Compatible (1t) {:>9.1} ms", ms(meshopt));
+    println!("    bevy_mikktspace               {:>9.1} ms", ms(bevy));
+    let over_meshopt = meshopt / cli;
+    let over_bevy = bevy / cli;
+    let share = scene_layer / compute;
+    // The issue sets the whole-process targets on the 2M-triangle sphere: on a small scene the
+    // process's start and the file's images outweigh any core.
+    let target = |text: String| {
+        if scene.mesh.triangle_count() >= TARGETS_FROM_TRIANGLES {
+            text
+        } else {
+            "no target at this size".to_owned()
+        }
+    };
+    println!("  ratios:");
+    println!(
+        "    whole process vs meshopt Compatible core  {over_meshopt:>6.2}  ({})",
+        target(format!(
+            "target >= {TARGET_CLI_OVER_MESHOPT}: {}",
+            verdict(over_meshopt >= TARGET_CLI_OVER_MESHOPT)
+        ))
+    );
+    println!(
+        "    whole process vs bevy_mikktspace core     {over_bevy:>6.1}  ({})",
+        target(format!(
+            "target >= {TARGET_CLI_OVER_BEVY}: {}",
+            verdict(over_bevy >= TARGET_CLI_OVER_BEVY)
+        ))
+    );
+    println!(
+        "    scene layer / core (in process)           {share:>6.2}  ({})",
+        target(format!(
+            "target <= {TARGET_SCENE_LAYER_SHARE}: {}",
+            verdict(share <= TARGET_SCENE_LAYER_SHARE)
+        ))
+    );
+    csv.push_str(&format!(
+        "{},{},{},{:.3},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
+        scene.name.replace(',', ""),
+        scene.mesh.triangle_count(),
+        scene.bytes.len(),
+        ms(cli),
+        m.cli_peak.unwrap_or(0),
+        ms(in_process),
+        ms(compute),
+        ms(scene_layer),
+        ms(core),
+        ms(meshopt),
+        ms(bevy),
+        over_meshopt,
+        over_bevy,
+    ));
+}
+
+/// p50 latency of `clients` callers each processing the scene in a loop for `seconds`, at most
+/// `workers` at a time: what the service does, without HTTP.
+fn in_process_p50(bytes: &Arc<Vec<u8>>, clients: usize, workers: usize, seconds: u64) -> f64 {
+    let permits = Arc::new(std::sync::Mutex::new(workers));
+    let freed = Arc::new(std::sync::Condvar::new());
+    let deadline = Instant::now() + Duration::from_secs(seconds);
+    let threads: Vec<_> = (0..clients)
+        .map(|_| {
+            let (bytes, permits, freed) = (bytes.clone(), permits.clone(), freed.clone());
+            std::thread::spawn(move || {
+                let mut latencies = Vec::new();
+                while Instant::now() < deadline {
+                    let started = Instant::now();
+                    {
+                        let mut free = permits.lock().expect("permits");
+                        while *free == 0 {
+                            free = freed.wait(free).expect("permits");
+                        }
+                        *free -= 1;
+                    }
+                    let done = input::process(
+                        InputKind::Glb,
+                        &bytes,
+                        &NoResources,
+                        &SceneOptions::default(),
+                    )
+                    .expect("processes");
+                    *permits.lock().expect("permits") += 1;
+                    freed.notify_one();
+                    drop(std::hint::black_box(done));
+                    latencies.push(started.elapsed().as_secs_f64());
+                }
+                latencies
+            })
+        })
+        .collect();
+    median(
+        threads
+            .into_iter()
+            .flat_map(|t| t.join().expect("caller"))
+            .collect(),
+    )
+}
+
+/// p50 latency of `POST /v1/tangents` with `clients` concurrent clients for `seconds`.
+async fn http_p50(url: &str, bytes: &bytes::Bytes, clients: usize, seconds: u64) -> f64 {
+    let deadline = Instant::now() + Duration::from_secs(seconds);
+    let tasks: Vec<_> = (0..clients)
+        .map(|_| {
+            let (url, body) = (url.to_owned(), bytes.clone());
+            tokio::spawn(async move {
+                let http = reqwest::Client::new();
+                let mut latencies = Vec::new();
+                while Instant::now() < deadline {
+                    let started = Instant::now();
+                    let response = http
+                        .post(&url)
+                        .header("content-type", "model/gltf-binary")
+                        .body(body.clone())
+                        .send()
+                        .await
+                        .expect("the request is answered");
+                    assert_eq!(response.status(), 200, "the service answered");
+                    let answer = response.bytes().await.expect("the answer is read");
+                    drop(std::hint::black_box(answer));
+                    latencies.push(started.elapsed().as_secs_f64());
+                }
+                latencies
+            })
+        })
+        .collect();
+    let mut latencies = Vec::new();
+    for task in tasks {
+        latencies.extend(task.await.expect("client"));
+    }
+    median(latencies)
+}
+
+fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let bytes = Arc::new(scene.bytes.clone());
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("a runtime");
+    println!(
+        "\nHTTP, {} ({} workers): p50 of POST /v1/tangents against the same callers in process",
+        scene.name, workers
+    );
+    runtime.block_on(async {
+        let server = ServerConfig {
+            concurrency: workers,
+            queue: 64,
+            body_limit: 256 << 20,
+            ..ServerConfig::local()
+        };
+        let running = tspace::server::start(server)
+            .await
+            .expect("server starts");
+        let url = format!("http://{}/v1/tangents", running.addr);
+        let body = bytes::Bytes::from(scene.bytes.clone());
+        for clients in [1, 8] {
+            let direct = {
+                let bytes = bytes.clone();
+                let seconds = config.http_seconds;
+                tokio::task::spawn_blocking(move || {
+                    in_process_p50(&bytes, clients, workers, seconds)
+                })
+                .await
+                .expect("in-process callers")
+            };
+            let http = http_p50(&url, &body, clients, config.http_seconds).await;
+            let ratio = http / direct;
+            println!(
+                "  {clients} client(s): HTTP {:>7.2} ms, in process {:>7.2} ms, ratio {ratio:.2} (target <= {TARGET_HTTP_OVER_IN_PROCESS}: {})",
+                http * 1e3,
+                direct * 1e3,
+                verdict(ratio <= TARGET_HTTP_OVER_IN_PROCESS)
+            );
+            csv.push_str(&format!(
+                "http {} {clients} clients,,,{:.3},,{:.3},,,,,,{ratio:.3},\n",
+                scene.name,
+                http * 1e3,
+                direct * 1e3
+            ));
+        }
+        running.shutdown().await.expect("shuts down");
+    });
+}
+
+fn main() {
+    let config = Config::from_env_and_args();
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("whole-path");
+    std::fs::create_dir_all(&dir).expect("a scratch folder");
+    let wanted = |name: &str| config.filter.as_deref().is_none_or(|f| name.contains(f));
+    let mut scenes = Vec::new();
+    if wanted("sphere") {
+        scenes.push(sphere(&dir, config.quick));
+    }
+    if wanted("DamagedHelmet") {
+        match helmet(&dir) {
+            Some(scene) => scenes.push(scene),
+            None => println!("note: DamagedHelmet skipped: ../shared/corpus is not present"),
+        }
+    }
+    let mut csv = String::from(
+        "scene,triangles,input_bytes,cli_ms,cli_peak_rss_bytes,in_process_ms,compute_ms,scene_layer_ms,tspace_core_ms,meshopt_compatible_ms,bevy_ms,whole_over_meshopt,whole_over_bevy\n",
+    );
+    for scene in &scenes {
+        let measured = measure(scene, &dir, &config);
+        report(scene, &measured, &mut csv);
+    }
+    if let Some(helmet) = scenes.iter().find(|s| s.name == "DamagedHelmet") {
+        http_against_in_process(helmet, &config, &mut csv);
+    }
+    let out = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench-results");
+    if !config.quick && config.filter.is_none() && std::fs::create_dir_all(&out).is_ok() {
+        let _ = std::fs::write(out.join("whole_path.csv"), csv);
+    }
+}
