@@ -6,6 +6,7 @@ use super::accessor::{self, AccessorError, ComponentType, Data};
 use super::plan::{GeometryKey, Topology};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::{Audit, TallyReport};
+use std::borrow::Cow;
 use tspace_json::Node;
 use tspace_tangent::{
     self as tangent, Cancel, CoreError, MeshInput, Options, SplitPlan, Tally, Tangents,
@@ -20,16 +21,17 @@ pub struct GeometryLimits {
     pub max_triangles: usize,
 }
 
-/// The geometry of one [`GeometryKey`], as the core takes it.
-pub struct Geometry {
-    pub positions: Vec<[f32; 3]>,
-    pub normals: Option<Vec<[f32; 3]>>,
-    pub uvs: Option<Vec<[f32; 2]>>,
+/// The geometry of one [`GeometryKey`], as the core takes it: borrowed from the scene's buffers
+/// where the data needs no decoding (see `accessor::floats_in_place`), else decoded.
+pub struct Geometry<'a> {
+    pub positions: Cow<'a, [[f32; 3]]>,
+    pub normals: Option<Cow<'a, [[f32; 3]]>>,
+    pub uvs: Option<Cow<'a, [[f32; 2]]>>,
     /// A triangle list (strips and fans unrolled), or `None` for non-indexed triangles.
-    pub indices: Option<Vec<u32>>,
+    pub indices: Option<Cow<'a, [u32]>>,
 }
 
-impl Geometry {
+impl Geometry<'_> {
     pub fn input(&self) -> MeshInput<'_> {
         MeshInput {
             positions: &self.positions,
@@ -40,7 +42,10 @@ impl Geometry {
     }
 
     pub fn triangle_count(&self) -> usize {
-        self.indices.as_ref().map_or(self.positions.len(), Vec::len) / 3
+        self.indices
+            .as_ref()
+            .map_or(self.positions.len(), |i| i.len())
+            / 3
     }
 
     /// The vertex of each corner.
@@ -52,8 +57,8 @@ impl Geometry {
 }
 
 /// The result of one computation.
-pub struct Computed {
-    pub geometry: Geometry,
+pub struct Computed<'a> {
+    pub geometry: Geometry<'a>,
     pub tangents: Tangents,
     /// Per morph target: tangent deltas per output vertex, when the target moves POSITION or
     /// NORMAL.
@@ -61,7 +66,7 @@ pub struct Computed {
     pub morph_handedness_changes: u64,
 }
 
-impl Computed {
+impl Computed<'_> {
     /// True when the primitive's vertices, indices and mode can stay as they are: nothing was
     /// split, no normals were generated, and no strip or fan had to be unrolled.
     pub fn keeps_vertices(&self, topology: Topology) -> bool {
@@ -95,20 +100,24 @@ fn core_error(path: &str, error: CoreError) -> SceneError {
     }
 }
 
-/// Unit normals from a quantized accessor (normalized integers are not unit after decoding).
-fn read_normals(
+/// Normals as they are, or unit ones from a quantized accessor (normalized integers are not
+/// unit after decoding).
+fn read_normals<'a>(
     root: &Node,
     index: usize,
-    data: Data<'_>,
+    data: Data<'a>,
     limits: &GeometryLimits,
-) -> Result<Vec<[f32; 3]>, SceneError> {
+) -> Result<Cow<'a, [[f32; 3]]>, SceneError> {
     let described = data.accessor(root, index).map_err(accessor_error)?;
+    if described.component_type == ComponentType::F32 {
+        return data
+            .floats_borrowed::<3>(root, index, limits.max_vertices)
+            .map_err(accessor_error);
+    }
     let mut normals =
         accessor::read_floats::<3>(&described, limits.max_vertices).map_err(accessor_error)?;
-    if described.component_type != ComponentType::F32 {
-        normalize(&mut normals);
-    }
-    Ok(normals)
+    normalize(&mut normals);
+    Ok(Cow::Owned(normals))
 }
 
 /// Scales every non-zero vector to unit length; a zero one stays as it is.
@@ -124,11 +133,12 @@ fn normalize(vectors: &mut [[f32; 3]]) {
 /// Turns strips and fans into triangle lists (glTF 2.0 §3.7.2.1), and checks a list's length.
 fn triangle_list(
     topology: Topology,
-    indices: Option<Vec<u32>>,
+    indices: Option<Cow<'_, [u32]>>,
     vertex_count: usize,
-) -> Option<Vec<u32>> {
-    let sequence =
-        |indices: Option<Vec<u32>>| indices.unwrap_or_else(|| (0..vertex_count as u32).collect());
+) -> Option<Cow<'_, [u32]>> {
+    let sequence = |indices: Option<Cow<'_, [u32]>>| -> Vec<u32> {
+        indices.map_or_else(|| (0..vertex_count as u32).collect(), Cow::into_owned)
+    };
     match topology {
         Topology::Triangles => indices,
         Topology::Strip => {
@@ -140,7 +150,7 @@ fn triangle_list(
                 let (a, b) = if i % 2 == 0 { (1, 2) } else { (2, 1) };
                 out.extend([s[i], s[i + a], s[i + b]]);
             }
-            Some(out)
+            Some(Cow::Owned(out))
         }
         Topology::Fan => {
             let s = sequence(indices);
@@ -149,20 +159,20 @@ fn triangle_list(
             for i in 0..n {
                 out.extend([s[i + 1], s[i + 2], s[0]]);
             }
-            Some(out)
+            Some(Cow::Owned(out))
         }
     }
 }
 
 /// Reads the geometry a key names.
-pub fn read_geometry(
+pub fn read_geometry<'a>(
     root: &Node,
     key: &GeometryKey,
-    data: Data<'_>,
+    data: Data<'a>,
     limits: &GeometryLimits,
-) -> Result<Geometry, SceneError> {
+) -> Result<Geometry<'a>, SceneError> {
     let positions = data
-        .floats::<3>(root, key.position, limits.max_vertices)
+        .floats_borrowed::<3>(root, key.position, limits.max_vertices)
         .map_err(accessor_error)?;
     let normals = key
         .normal
@@ -170,14 +180,14 @@ pub fn read_geometry(
         .transpose()?;
     let uvs = key
         .texcoord
-        .map(|t| data.floats::<2>(root, t, limits.max_vertices))
+        .map(|t| data.floats_borrowed::<2>(root, t, limits.max_vertices))
         .transpose()
         .map_err(accessor_error)?;
     // Index lists are bounded by corners, which may be up to three per triangle.
     let max_corners = limits.max_triangles.saturating_mul(3);
     let indices = key
         .indices
-        .map(|i| data.indices(root, i, max_corners))
+        .map(|i| data.indices_borrowed(root, i, max_corners))
         .transpose()
         .map_err(accessor_error)?;
     let indices = triangle_list(key.topology, indices, positions.len());
@@ -192,12 +202,15 @@ pub fn read_geometry(
 /// Drops a strip's leftover vertices and a list's stray indices, which are not triangles; a
 /// non-indexed list has nothing to drop from, so whole triangles are required of it.
 fn keep_whole_triangles(
-    geometry: &mut Geometry,
+    geometry: &mut Geometry<'_>,
     topology: Topology,
     path: &str,
 ) -> Result<(), SceneError> {
     if let Some(indices) = &mut geometry.indices {
-        indices.truncate(indices.len() / 3 * 3);
+        let whole = indices.len() / 3 * 3;
+        if whole != indices.len() {
+            indices.to_mut().truncate(whole);
+        }
     } else if topology == Topology::Triangles && !geometry.positions.len().is_multiple_of(3) {
         return Err(SceneError::new(
             ProblemCode::InvalidPrimitive,
@@ -267,7 +280,7 @@ fn displaced(base: &[[f32; 3]], displacement: &Option<Vec<[f32; 3]>>) -> Vec<[f3
 /// Tangents of the mesh as the target deforms it: same UVs and triangles, so corner for corner
 /// comparable with the base.
 fn morphed_tangents(
-    geometry: &Geometry,
+    geometry: &Geometry<'_>,
     displacement: &Displacement,
     run: &Run<'_>,
 ) -> Result<Tangents, CoreError> {
@@ -322,13 +335,13 @@ pub struct Run<'a> {
 }
 
 /// Runs the core on a key's geometry and on each of its morph targets.
-pub fn compute(
+pub fn compute<'a>(
     root: &Node,
     key: &GeometryKey,
-    data: Data<'_>,
+    data: Data<'a>,
     run: &Run<'_>,
     path: &str,
-) -> Result<Computed, SceneError> {
+) -> Result<Computed<'a>, SceneError> {
     let limits = run.limits;
     let mut geometry = read_geometry(root, key, data, limits)?;
     keep_whole_triangles(&mut geometry, key.topology, path)?;
@@ -479,17 +492,22 @@ mod tests {
     use super::*;
 
     /// A quad in the XY plane facing +Z, UVs along X and Y: MikkTSpace's tangents are +X.
-    fn quad() -> Computed {
+    fn quad() -> Computed<'static> {
         let geometry = Geometry {
-            positions: vec![
+            positions: Cow::Owned(vec![
                 [0.0, 0.0, 0.0],
                 [1.0, 0.0, 0.0],
                 [1.0, 1.0, 0.0],
                 [0.0, 1.0, 0.0],
-            ],
-            normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
-            uvs: Some(vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]]),
-            indices: Some(vec![0, 1, 2, 0, 2, 3]),
+            ]),
+            normals: Some(Cow::Owned(vec![[0.0, 0.0, 1.0]; 4])),
+            uvs: Some(Cow::Owned(vec![
+                [0.0, 1.0],
+                [1.0, 1.0],
+                [1.0, 0.0],
+                [0.0, 0.0],
+            ])),
+            indices: Some(Cow::Owned(vec![0, 1, 2, 0, 2, 3])),
         };
         let tangents = tangent::generate(&geometry.input(), &Options::default()).unwrap();
         Computed {
@@ -528,13 +546,11 @@ mod tests {
     #[test]
     fn strips_and_fans_unroll_with_consistent_winding() {
         let strip = triangle_list(Topology::Strip, None, 5).unwrap();
-        assert_eq!(strip, vec![0, 1, 2, 1, 3, 2, 2, 3, 4]);
-        let fan = triangle_list(Topology::Fan, Some(vec![7, 8, 9, 10]), 11).unwrap();
-        assert_eq!(fan, vec![8, 9, 7, 9, 10, 7]);
-        assert_eq!(
-            triangle_list(Topology::Strip, Some(vec![1, 2]), 3),
-            Some(vec![])
-        );
+        assert_eq!(*strip, [0, 1, 2, 1, 3, 2, 2, 3, 4]);
+        let fan = triangle_list(Topology::Fan, Some(Cow::Owned(vec![7, 8, 9, 10])), 11).unwrap();
+        assert_eq!(*fan, [8, 9, 7, 9, 10, 7]);
+        let short = triangle_list(Topology::Strip, Some(Cow::Owned(vec![1, 2])), 3).unwrap();
+        assert!(short.is_empty());
         assert_eq!(triangle_list(Topology::Triangles, None, 3), None);
     }
 }

@@ -178,20 +178,26 @@ pub const UNLIT: &str = "KHR_materials_unlit";
 mod tests {
     use super::*;
     use crate::scene::gltf::compute::Geometry;
+    use std::borrow::Cow;
     use tspace_tangent::{Options, generate};
 
     /// Two triangles sharing an edge, the second mirrored in UV.
-    fn mirrored_pair() -> Computed {
+    fn mirrored_pair() -> Computed<'static> {
         let geometry = Geometry {
-            positions: vec![
+            positions: Cow::Owned(vec![
                 [0.0, 0.0, 0.0],
                 [1.0, 0.0, 0.0],
                 [0.0, 1.0, 0.0],
                 [1.0, 1.0, 0.0],
-            ],
-            normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
-            uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]),
-            indices: Some(vec![0, 1, 2, 2, 1, 3]),
+            ]),
+            normals: Some(Cow::Owned(vec![[0.0, 0.0, 1.0]; 4])),
+            uvs: Some(Cow::Owned(vec![
+                [0.0, 0.0],
+                [1.0, 0.0],
+                [0.0, 1.0],
+                [1.0, 1.0],
+            ])),
+            indices: Some(Cow::Owned(vec![0, 1, 2, 2, 1, 3])),
         };
         let tangents = match generate(&geometry.input(), &Options::default()) {
             Ok(t) => t,

@@ -196,12 +196,12 @@ fn layouts(
         .zip(marks)
         .map(|(computed, marks)| {
             let geometry = &computed.geometry;
-            let uvs = geometry.uvs.clone()?;
+            let uvs = geometry.uvs.as_deref()?.to_vec();
             Some(Layout {
                 primitives: Vec::new(),
                 texcoord: 0,
                 uvs,
-                indices: geometry.indices.clone(),
+                indices: geometry.indices.as_deref().map(<[u32]>::to_vec),
                 marks,
                 repaired_corners: computed
                     .tangents
@@ -366,12 +366,12 @@ fn check_triangle_budget(
 
 /// Runs every job, in parallel. All run to the end, so that the error returned is the first in
 /// job order, whatever the threads' timing.
-fn compute_jobs(
+fn compute_jobs<'a>(
     root: &Node,
     jobs: &[Job],
-    data: Data<'_>,
+    data: Data<'a>,
     options: &SceneOptions,
-) -> Result<Vec<Computed>, SceneError> {
+) -> Result<Vec<Computed<'a>>, SceneError> {
     let limits = GeometryLimits {
         max_vertices: options.limits.max_vertices,
         max_triangles: options.limits.max_triangles,
