@@ -906,3 +906,72 @@ fn unknown_extensions_and_extras_survive_and_keep_everything_in_place() {
     assert_eq!(primitive["extensions"], json!({"EXT_made_up": {"x": 1}}));
     assert_eq!(json["scenes"][0]["extras"], json!({"a": 1}));
 }
+
+/// Written in pieces (as the command line writes), every fixture comes out as the same bytes
+/// with the same report as written whole: GLB and `.gltf` inputs, passed through, split,
+/// Draco and meshopt ones, under the default options and with everything recomputed.
+#[test]
+fn pieces_put_together_are_the_whole_output() {
+    use tspace::scene::folder::Folder;
+    use tspace::scene::input::{self, InputKind};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+    let mut files: Vec<std::path::PathBuf> = Vec::new();
+    for dir in std::fs::read_dir(&root).unwrap().flatten() {
+        for file in std::fs::read_dir(dir.path())
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            let path = file.path();
+            if InputKind::from_file_name(&path.to_string_lossy()).is_some() {
+                files.push(path);
+            }
+        }
+    }
+    files.sort();
+    assert!(files.len() > 20, "{} fixtures", files.len());
+    let mut in_pieces = 0;
+    for path in &files {
+        let bytes = std::fs::read(path).unwrap();
+        let kind = InputKind::from_file_name(&path.to_string_lossy()).unwrap();
+        let folder = Folder::of_file(path, 1 << 30);
+        for options in [SceneOptions::default(), overwrite_all()] {
+            let Ok(whole) = input::process(kind, &bytes, &folder, &options) else {
+                continue;
+            };
+            let pieces_options = SceneOptions {
+                in_pieces: true,
+                ..options.clone()
+            };
+            let split = input::process(kind, &bytes, &folder, &pieces_options).unwrap();
+            let put_together = match (&split.pieces, &split.bytes) {
+                (Some(pieces), None) => {
+                    in_pieces += 1;
+                    pieces.to_vec(&bytes)
+                }
+                (None, Some(bytes)) => bytes.clone(),
+                _ => panic!("{}: neither pieces nor bytes", path.display()),
+            };
+            assert!(
+                put_together == whole.bytes.clone().unwrap(),
+                "{}: the pieces differ from the whole output",
+                path.display()
+            );
+            assert_eq!(
+                split.report.to_json_pretty(),
+                whole.report.to_json_pretty(),
+                "{}",
+                path.display()
+            );
+        }
+    }
+    assert!(in_pieces > 10, "only {in_pieces} outputs came in pieces");
+}
+
+fn overwrite_all() -> SceneOptions {
+    SceneOptions {
+        overwrite: true,
+        all: true,
+        ..SceneOptions::default()
+    }
+}

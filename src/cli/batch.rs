@@ -14,6 +14,7 @@ use crate::scene::options::Debug;
 use crate::scene::report::Report;
 use crate::scene::{OutputFormat, Processed, SceneOptions};
 use rayon::prelude::*;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The largest file read: a main file, or a buffer, image or MTL file it names.
@@ -23,6 +24,23 @@ pub(super) fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Pr
     if is_dash(path) {
         return stdio::process_stdin(MAX_FILE_BYTES, options);
     }
+    let input = read_input(path)?;
+    Ok(input::process(
+        input.kind,
+        &input.bytes,
+        &input.folder,
+        options,
+    )?)
+}
+
+/// A scene file's bytes, what they are, and the folder its other files are read from.
+struct SceneFile {
+    bytes: FileBytes,
+    kind: InputKind,
+    folder: Folder,
+}
+
+fn read_input(path: &Path) -> Result<SceneFile, Failure> {
     let unreadable = |e: std::io::Error| {
         Failure::bad_input(
             FailureCode::UnreadableInput,
@@ -56,7 +74,11 @@ pub(super) fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Pr
             Failure::bad_input(FailureCode::UnknownFormat, "not a GLB, glTF or OBJ file")
         })?;
     let folder = Folder::of_file(path, MAX_FILE_BYTES);
-    Ok(input::process(kind, &bytes, &folder, options)?)
+    Ok(SceneFile {
+        bytes,
+        kind,
+        folder,
+    })
 }
 
 /// Files this large are mapped rather than read.
@@ -97,9 +119,12 @@ fn read_file(path: &Path, length: u64) -> std::io::Result<FileBytes> {
     Ok(FileBytes::Mapped(map))
 }
 
-/// Writes `bytes` to `path` through a temporary file beside it, so that a failure never leaves
-/// a partial output under the final name.
-fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+/// Writes to `path` through a temporary file beside it, so that a failure never leaves a partial
+/// output under the final name.
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> std::io::Result<()> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;
     }
@@ -107,7 +132,9 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     name.push(path.file_name().unwrap_or_default());
     name.push(format!(".tspace-tmp-{}", std::process::id()));
     let temporary = path.with_file_name(name);
-    let result = std::fs::write(&temporary, bytes).and_then(|()| std::fs::rename(&temporary, path));
+    let result = std::fs::File::create(&temporary)
+        .and_then(|mut file| write(&mut file))
+        .and_then(|()| std::fs::rename(&temporary, path));
     if result.is_err() {
         let _ = std::fs::remove_file(&temporary);
     }
@@ -116,10 +143,18 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 
 /// Writes one output: to standard output for `-`, else to its file.
 pub(super) fn write_output(output: &Path, bytes: &[u8]) -> Result<(), Failure> {
+    write_with(output, |out| out.write_all(bytes))
+}
+
+/// Writes one output with `write`: to standard output for `-`, else to its file.
+fn write_with(
+    output: &Path,
+    write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<(), Failure> {
     let written = if is_dash(output) {
-        stdio::write_stdout(bytes)
+        stdio::with_stdout(|out| write(out))
     } else {
-        write_atomically(output, bytes)
+        write_atomically(output, |file| write(file))
     };
     written.map_err(|e| Failure {
         exit: Exit::Write,
@@ -134,9 +169,24 @@ fn process_one(
     output: Option<&Path>,
     options: &SceneOptions,
 ) -> Result<Report, Failure> {
-    let processed = read_and_process(&input.path, options)?;
-    if let Some(output) = output {
-        write_output(output, &processed.bytes.unwrap_or_default())?;
+    let (Some(output), false) = (output, is_dash(&input.path)) else {
+        let processed = read_and_process(&input.path, options)?;
+        if let Some(output) = output {
+            write_output(output, processed.bytes.as_deref().unwrap_or_default())?;
+        }
+        return Ok(processed.report);
+    };
+    // A file input is held until its output is written, so the output is written in pieces
+    // that refer to it (see SceneOptions::in_pieces) and never assembled in memory.
+    let file = read_input(&input.path)?;
+    let options = SceneOptions {
+        in_pieces: true,
+        ..options.clone()
+    };
+    let processed = input::process(file.kind, &file.bytes, &file.folder, &options)?;
+    match &processed.pieces {
+        Some(pieces) => write_with(output, |out| pieces.write_to(&file.bytes, out))?,
+        None => write_output(output, processed.bytes.as_deref().unwrap_or_default())?,
     }
     Ok(processed.report)
 }
@@ -346,7 +396,7 @@ fn write_report(path: &Path, outcomes: &[Outcome], single: bool) -> Exit {
             if is_dash(path) {
                 stdio::write_stdout(text.as_bytes())
             } else {
-                write_atomically(path, text.as_bytes())
+                write_atomically(path, |file| file.write_all(text.as_bytes()))
             }
         });
     match written {

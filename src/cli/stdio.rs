@@ -110,8 +110,15 @@ fn explain_missing_resource(mut failure: Failure) -> Failure {
 
 /// Writes `bytes` to standard output and flushes it.
 pub(crate) fn write_stdout(bytes: &[u8]) -> std::io::Result<()> {
+    with_stdout(|out| out.write_all(bytes))
+}
+
+/// Writes to standard output with `write`, then flushes it.
+pub(crate) fn with_stdout(
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> std::io::Result<()> {
     let mut stdout = std::io::stdout().lock();
-    stdout.write_all(bytes)?;
+    write(&mut stdout)?;
     stdout.flush()
 }
 

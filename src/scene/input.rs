@@ -139,6 +139,10 @@ fn process_obj<'a>(
             no_material_means_tangents: true,
         },
     )?;
+    // The pieces would refer to the GLB made here, which goes when this returns.
+    if let Some(pieces) = processed.pieces.take() {
+        processed.bytes = Some(pieces.to_vec(&glb_bytes));
+    }
     let report = &mut processed.report;
     report.input_format = "obj";
     report.input_bytes = main.len() as u64 + supplied.bytes;

@@ -15,6 +15,7 @@ pub mod obj;
 pub mod obj_gltf;
 pub mod options;
 pub mod pictures;
+pub mod pieces;
 pub mod report;
 pub mod uri;
 

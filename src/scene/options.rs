@@ -242,6 +242,10 @@ pub struct SceneOptions {
     /// Keep what a UV-layout picture draws ([`Processed::layouts`]); off unless a picture is
     /// asked for, since it holds a copy of the UVs and indices.
     pub layouts: bool,
+    /// Return a written GLB as [`Processed::pieces`], which refer to the input where the output
+    /// repeats it, instead of as one vector: for a caller that writes it out while it still
+    /// holds the input (the command line). An OBJ's, whose GLB is made inside, comes back whole.
+    pub in_pieces: bool,
 }
 
 impl Default for SceneOptions {
@@ -261,6 +265,7 @@ impl Default for SceneOptions {
             limits: SceneLimits::default(),
             cancel: Cancel::default(),
             layouts: false,
+            in_pieces: false,
         }
     }
 }
@@ -492,7 +497,10 @@ impl SceneOptions {
 
 /// The written scene (unless only analysed) and its report.
 pub struct Processed {
+    /// The written scene, unless only analysed or written in pieces.
     pub bytes: Option<Vec<u8>>,
+    /// With [`SceneOptions::in_pieces`]: the written GLB, piece by piece.
+    pub pieces: Option<super::pieces::Pieces>,
     pub report: Report,
     /// With [`SceneOptions::layouts`]: the texture layout of every geometry that was computed.
     pub layouts: Vec<super::layout::Layout>,

@@ -92,6 +92,8 @@ fn scene_options(data: &[u8]) -> SceneOptions {
         cancel: Default::default(),
         // Sometimes the UV-layout picture too (drawn in check_processed).
         layouts: h & 0x800 != 0,
+        // Sometimes written in pieces (put together again in run_scene).
+        in_pieces: h & 0x2000 != 0,
     }
 }
 
@@ -123,7 +125,10 @@ fn run_scene<'a>(
     resources: &dyn load::Resources<'a>,
     options: &SceneOptions,
 ) {
-    if let Ok(processed) = input::process(kind, main, resources, options) {
+    if let Ok(mut processed) = input::process(kind, main, resources, options) {
+        if let Some(pieces) = processed.pieces.take() {
+            processed.bytes = Some(pieces.to_vec(main));
+        }
         check_processed(&processed);
     }
 }

@@ -271,42 +271,84 @@ pub fn write_pieces(
     other_chunks: &[Chunk<'_>],
 ) -> Result<Vec<u8>, GlbError> {
     let json_piece = [json];
-    let chunks: Vec<(u32, &[&[u8]], u8)> = std::iter::once((CHUNK_JSON, &json_piece[..], b' '))
-        .chain(bin.map(|b| (CHUNK_BIN, b, 0)))
+    let chunks: Vec<(u32, &[&[u8]])> = std::iter::once((CHUNK_JSON, &json_piece[..]))
+        .chain(bin.map(|b| (CHUNK_BIN, b)))
         .chain(
             other_chunks
                 .iter()
-                .map(|c| (c.kind, std::slice::from_ref(&c.data), 0)),
+                .map(|c| (c.kind, std::slice::from_ref(&c.data))),
         )
         .collect();
-    let length = |pieces: &[&[u8]]| pieces.iter().map(|p| p.len() as u64).sum::<u64>();
-
-    // Lengths come from slices that exist, so u64 cannot overflow; the format's u32 can.
-    let total: u64 = HEADER_LEN as u64
-        + chunks
-            .iter()
-            .map(|(_, pieces, _)| CHUNK_HEADER_LEN as u64 + padded_len(length(pieces)))
-            .sum::<u64>();
-    let too_large = GlbError::TooLarge { bytes: total };
-    let total_u32 = u32::try_from(total).map_err(|_| too_large.clone())?;
-    let capacity = usize::try_from(total).map_err(|_| too_large)?;
-
-    let mut out = Vec::with_capacity(capacity);
-    out.extend_from_slice(&MAGIC.to_le_bytes());
-    out.extend_from_slice(&VERSION.to_le_bytes());
-    out.extend_from_slice(&total_u32.to_le_bytes());
-    for (kind, pieces, pad) in chunks {
-        let len = length(pieces);
-        // Each padded length is at most the total, which fits in u32.
-        let padded = padded_len(len) as u32;
-        out.extend_from_slice(&padded.to_le_bytes());
-        out.extend_from_slice(&kind.to_le_bytes());
-        for piece in pieces {
+    let lengths: Vec<(u32, usize)> = chunks
+        .iter()
+        .map(|(kind, pieces)| (*kind, pieces.iter().map(|p| p.len()).sum()))
+        .collect();
+    let framing = Framing::of(&lengths)?;
+    let mut out = Vec::with_capacity(framing.total);
+    out.extend_from_slice(&framing.header);
+    for ((_, pieces), chunk) in chunks.iter().zip(&framing.chunks) {
+        out.extend_from_slice(&chunk.header);
+        for piece in *pieces {
             out.extend_from_slice(piece);
         }
-        out.resize(out.len() + (padded as usize - len as usize), pad);
+        out.resize(out.len() + chunk.padding, chunk.pad_byte);
     }
     Ok(out)
+}
+
+/// The bytes a GLB puts around its chunks: the file header, and per chunk its header and the
+/// padding after it (spaces after JSON, zeros after the others).
+pub struct Framing {
+    pub header: [u8; HEADER_LEN],
+    pub chunks: Vec<ChunkFraming>,
+    /// The file's length.
+    pub total: usize,
+}
+
+pub struct ChunkFraming {
+    pub header: [u8; CHUNK_HEADER_LEN],
+    pub padding: usize,
+    pub pad_byte: u8,
+}
+
+impl Framing {
+    /// The framing of chunks of these kinds and lengths, in order; fails when the file would
+    /// pass the format's 4 GiB.
+    pub fn of(chunks: &[(u32, usize)]) -> Result<Framing, GlbError> {
+        // Lengths come from slices that exist, so u64 cannot overflow; the format's u32 can.
+        let total: u64 = HEADER_LEN as u64
+            + chunks
+                .iter()
+                .map(|&(_, len)| CHUNK_HEADER_LEN as u64 + padded_len(len as u64))
+                .sum::<u64>();
+        let too_large = GlbError::TooLarge { bytes: total };
+        let total_u32 = u32::try_from(total).map_err(|_| too_large.clone())?;
+        let total = usize::try_from(total).map_err(|_| too_large)?;
+        let mut header = [0u8; HEADER_LEN];
+        header[0..4].copy_from_slice(&MAGIC.to_le_bytes());
+        header[4..8].copy_from_slice(&VERSION.to_le_bytes());
+        header[8..12].copy_from_slice(&total_u32.to_le_bytes());
+        let chunks = chunks
+            .iter()
+            .map(|&(kind, len)| {
+                // Each padded length is at most the total, which fits in u32.
+                let padded = padded_len(len as u64) as u32;
+                let mut header = [0u8; CHUNK_HEADER_LEN];
+                header[0..4].copy_from_slice(&padded.to_le_bytes());
+                header[4..8].copy_from_slice(&kind.to_le_bytes());
+                ChunkFraming {
+                    header,
+                    padding: padded as usize - len,
+                    pad_byte: if kind == CHUNK_JSON { b' ' } else { 0 },
+                }
+            })
+            .collect();
+        Ok(Framing {
+            header,
+            chunks,
+            total,
+        })
+    }
 }
 
 fn padded_len(len: u64) -> u64 {

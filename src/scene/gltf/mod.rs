@@ -20,6 +20,7 @@ pub mod write;
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::layout::{Layout, PrimitiveRef};
 use crate::scene::options::{Debug, Timings};
+use crate::scene::pieces::Pieces;
 use crate::scene::report::{
     DebugClassReport, DebugColorsReport, MorphReport, Notice, PrimitiveReport, Report,
     StorageReport, TangentReport, thousands,
@@ -141,20 +142,35 @@ pub fn process_with<'a>(
     }
     timings.lap("report and edits");
     SceneError::check(cancel)?;
-    let bytes = write_scene(
+    let output = write_scene(
         bytes,
         &loaded,
-        &edits.changes,
+        &mut edits.changes,
         options,
         resources,
         &mut report,
     )?;
     timings.lap("write");
-    report_storage(&mut report, root, bytes.as_deref(), options.format)?;
+    let output_json = match &output {
+        Some(Output::Bytes(bytes)) => Some(output_json(bytes, options.format)?),
+        // The input passed through whole has the input's JSON.
+        Some(Output::Pieces(pieces)) => Some(match pieces.json() {
+            Some(json) => json,
+            None => output_json(bytes, OutputFormat::Glb)?,
+        }),
+        None => None,
+    };
+    report_storage(&mut report, root, output_json)?;
     report.finish();
     timings.lap("storage report");
+    let (bytes, pieces) = match output {
+        Some(Output::Bytes(bytes)) => (Some(bytes), None),
+        Some(Output::Pieces(pieces)) => (None, Some(pieces)),
+        None => (None, None),
+    };
     Ok(Processed {
         bytes,
+        pieces,
         report,
         layouts,
         timings,
@@ -702,21 +718,37 @@ fn add_totals(report: &mut Report, computed: &[Computed], edits: &Edits) {
     }
 }
 
+/// The written scene: one vector, or with [`SceneOptions::in_pieces`] the pieces it is made of.
+enum Output {
+    Bytes(Vec<u8>),
+    Pieces(Pieces),
+}
+
+impl Output {
+    fn len(&self) -> usize {
+        match self {
+            Output::Bytes(bytes) => bytes.len(),
+            Output::Pieces(pieces) => pieces.len(),
+        }
+    }
+}
+
 /// The output, unless only analysing; what the writer found goes into the report.
 fn write_scene<'a>(
     bytes: &[u8],
     loaded: &load::Loaded<'a>,
-    changes: &Changes,
+    changes: &mut Changes,
     options: &SceneOptions,
     resources: &dyn Resources<'a>,
     report: &mut Report,
-) -> Result<Option<Vec<u8>>, SceneError> {
+) -> Result<Option<Output>, SceneError> {
     if !options.write {
         report
             .notices
             .extend(write::unsupplied_images(loaded.doc.root(), resources));
         return Ok(None);
     }
+    let in_pieces = options.in_pieces && options.format == OutputFormat::Glb;
     let keeps_layout = write::compress::resolve(options.compress, loaded.doc.root())
         == write::compress::Output::Keep;
     let out = if changes.primitives.is_empty()
@@ -725,13 +757,27 @@ fn write_scene<'a>(
         && options.format == OutputFormat::Glb
     {
         // Nothing to change: the input is the output, byte for byte.
-        bytes.to_vec()
+        match in_pieces {
+            true => Output::Pieces(Pieces::whole_input(bytes.len())),
+            false => Output::Bytes(bytes.to_vec()),
+        }
     } else {
-        let written = write::write(loaded, changes, options.format, options.compress, resources)?;
+        let pieces_of = in_pieces.then_some(bytes);
+        let written = write::write(
+            loaded,
+            changes,
+            options.format,
+            options.compress,
+            resources,
+            pieces_of,
+        )?;
         report.input_bytes += written.embedded_image_bytes;
         report.dropped = written.dropped;
         report.notices.extend(written.notices);
-        written.bytes
+        match written.pieces {
+            Some(pieces) => Output::Pieces(pieces),
+            None => Output::Bytes(written.bytes),
+        }
     };
     report.output_format = Some(options.format.name());
     report.output_bytes = Some(out.len() as u64);
@@ -841,13 +887,10 @@ fn add_deltas(changes: &mut Changes, deltas: &[[f32; 3]], snorm: Option<Snorm>) 
 fn report_storage(
     report: &mut Report,
     root: &Node,
-    output: Option<&[u8]>,
-    format: OutputFormat,
+    output_json: Option<&[u8]>,
 ) -> Result<(), SceneError> {
     let before = sizes::measure(root);
-    let after = output
-        .map(|bytes| output_sizes(bytes, format))
-        .transpose()?;
+    let after = output_json.map(output_sizes).transpose()?;
     report.summary.mesh_bytes_in = before.total;
     report.summary.mesh_bytes_out = after.as_ref().map(|a| a.total);
     for entry in &mut report.primitives {
@@ -867,19 +910,26 @@ fn report_storage(
     Ok(())
 }
 
-fn output_sizes(bytes: &[u8], format: OutputFormat) -> Result<sizes::MeshSizes, SceneError> {
-    let json = match format {
-        OutputFormat::Glb => glb::parse(bytes).map(|g| g.json).map_err(|e| e.to_string()),
-        OutputFormat::GltfEmbedded => Ok(bytes),
-    };
-    let doc = json
-        .and_then(|j| tspace_json::Document::parse(j).map_err(|e| e.to_string()))
-        .map_err(|e| {
+/// The JSON of a written file.
+fn output_json(bytes: &[u8], format: OutputFormat) -> Result<&[u8], SceneError> {
+    match format {
+        OutputFormat::Glb => glb::parse(bytes).map(|g| g.json).map_err(|e| {
             SceneError::new(
                 ProblemCode::Internal,
                 format!("tspace's own output does not parse again: {e}"),
             )
-        })?;
+        }),
+        OutputFormat::GltfEmbedded => Ok(bytes),
+    }
+}
+
+fn output_sizes(json: &[u8]) -> Result<sizes::MeshSizes, SceneError> {
+    let doc = tspace_json::Document::parse(json).map_err(|e| {
+        SceneError::new(
+            ProblemCode::Internal,
+            format!("tspace's own output does not parse again: {e}"),
+        )
+    })?;
     Ok(sizes::measure(doc.root()))
 }
 

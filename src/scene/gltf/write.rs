@@ -27,6 +27,7 @@ use super::refs::{self, Owner};
 use crate::scene::OutputFormat;
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::options::Compression;
+use crate::scene::pieces::{self, Part};
 use crate::scene::report::{Dropped, Notice};
 use crate::scene::uri;
 use compress::{Encoded, Output, Prefiltered, Shape};
@@ -417,7 +418,10 @@ fn min_max_of(
 
 /// What [`write()`] produced.
 pub struct Written {
+    /// The file, unless it was written as [`Written::pieces`].
     pub bytes: Vec<u8>,
+    /// The GLB as pieces, when asked for with the input they may refer to.
+    pub pieces: Option<pieces::Pieces>,
     /// Bytes of external images the output now embeds.
     pub embedded_image_bytes: u64,
     pub dropped: Dropped,
@@ -465,10 +469,11 @@ fn sniff_image(bytes: &[u8]) -> Option<&'static str> {
 /// to match it, and emit the container.
 pub fn write(
     loaded: &Loaded<'_>,
-    changes: &Changes,
+    changes: &mut Changes,
     format: OutputFormat,
     compression: Compression,
     resources: &dyn Resources<'_>,
+    pieces_of: Option<&[u8]>,
 ) -> Result<Written, SceneError> {
     let root = loaded.doc.root();
     let output = compress::resolve(compression, root);
@@ -481,7 +486,7 @@ pub fn write(
     };
     let numbering = Numbering::new(&orphans, dropping);
     let buffers = BufferMap::new(&loaded.buffers);
-    let images = match format {
+    let mut images = match format {
         OutputFormat::Glb => embed_images(root, resources, &mut warnings),
         OutputFormat::GltfEmbedded => Images::default(),
     };
@@ -526,6 +531,7 @@ pub fn write(
             loaded,
             &buffers,
             &layout,
+            (changes, &images),
             format,
             &mut warnings,
         )?,
@@ -535,6 +541,7 @@ pub fn write(
                 loaded,
                 &buffers,
                 &layout,
+                (changes, &images),
                 format,
                 &mut warnings,
             )?;
@@ -555,7 +562,16 @@ pub fn write(
     }
     let json_text = editor.render().map_err(edit_error)?;
 
-    let bytes = emit(loaded, json_text, &layout, format)?;
+    let (bytes, pieces) = match pieces_of {
+        Some(input) if format == OutputFormat::Glb => {
+            let pieces = emit_pieces(loaded, &json_text, layout, (changes, &mut images), input)?;
+            (Vec::new(), Some(pieces))
+        }
+        _ => (
+            emit(loaded, json_text, &layout, format, (changes, &images))?,
+            None,
+        ),
+    };
     let dropped = Dropped {
         accessors: (numbering.accessor_map.len() - numbering.kept_accessors) as u64,
         buffer_views: (numbering.view_map.len() - numbering.kept_views) as u64,
@@ -563,6 +579,7 @@ pub fn write(
     };
     Ok(Written {
         bytes,
+        pieces,
         embedded_image_bytes: images.external_bytes,
         dropped,
         notices: warnings,
@@ -906,9 +923,14 @@ struct Pieces<'s> {
 }
 
 enum Piece<'s> {
+    /// Bytes of the input's buffers, or alignment zeros.
     Borrowed(&'s [u8]),
     /// A buffer built for the output (the packed layout's).
     Owned(Vec<u8>),
+    /// The data of the changes' new view of this index.
+    View(usize),
+    /// The bytes of the embedded image of this index in [`Images::data`].
+    Image(usize),
 }
 
 /// Alignment padding, borrowed: no padding is longer.
@@ -948,19 +970,27 @@ impl<'s> Pieces<'s> {
         self.parts.push(Piece::Borrowed(bytes));
     }
 
-    fn slices(&self) -> Vec<&[u8]> {
+    /// Appends a piece of `len` bytes held elsewhere (a new view's or an image's).
+    fn push_held(&mut self, piece: Piece<'s>, len: usize) {
+        self.len += len;
+        self.parts.push(piece);
+    }
+
+    fn slices<'a>(&'a self, changes: &'a Changes, images: &'a Images) -> Vec<&'a [u8]> {
         self.parts
             .iter()
             .map(|p| match p {
                 Piece::Borrowed(b) => *b,
                 Piece::Owned(v) => v.as_slice(),
+                Piece::View(i) => changes.views.get(*i).map_or(&[][..], |v| &v.data),
+                Piece::Image(i) => images.data.get(*i).map_or(&[][..], Vec::as_slice),
             })
             .collect()
     }
 
-    fn to_vec(&self) -> Vec<u8> {
+    fn to_vec(&self, changes: &Changes, images: &Images) -> Vec<u8> {
         let mut out = Vec::with_capacity(self.len);
-        for slice in self.slices() {
+        for slice in self.slices(changes, images) {
             out.extend_from_slice(slice);
         }
         out
@@ -986,8 +1016,8 @@ fn lay_out_buffer<'s>(
     root: &Node,
     buffers: &BufferMap<'s>,
     numbering: &Numbering,
-    changes: &'s Changes,
-    images: &'s Images,
+    changes: &Changes,
+    images: &Images,
     format: OutputFormat,
 ) -> Result<Layout<'s>, SceneError> {
     let old_views = root
@@ -1001,16 +1031,14 @@ fn lay_out_buffer<'s>(
         copy_whole_buffers(&mut bin, old_views, buffers)
     };
     let mut new_view_offsets = Vec::with_capacity(changes.views.len() + images.data.len());
-    for data in changes
-        .views
-        .iter()
-        .map(|v| &v.data)
-        .chain(images.data.iter())
-    {
+    let held = (changes.views.iter().enumerate())
+        .map(|(i, v)| (Piece::View(i), v.data.len()))
+        .chain((images.data.iter().enumerate()).map(|(i, data)| (Piece::Image(i), data.len())));
+    for (piece, len) in held {
         let at = align(bin.len(), 4);
         bin.pad_to(at);
         new_view_offsets.push(at);
-        bin.push(data);
+        bin.push_held(piece, len);
     }
     // In a GLB, a first buffer without a uri is the BIN chunk. When the only buffers are empty
     // ones (an EXT_meshopt_compression fallback, or a `.gltf` buffer with no uri), a BIN chunk
@@ -1418,13 +1446,14 @@ fn edit_buffers(
     loaded: &Loaded<'_>,
     buffers: &BufferMap<'_>,
     layout: &Layout<'_>,
+    (changes, images): (&Changes, &Images),
     format: OutputFormat,
     warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
     let root = loaded.doc.root();
     let count = buffers.buffers.len();
     let byte_length = layout.bin.len().max(1);
-    let bin_uri = bin_uri(layout, format);
+    let bin_uri = bin_uri(layout, format, changes, images);
     let single = count == 1 && buffers.has_data(0) && layout.bin_needed;
     match root.get("buffers") {
         Some(node) if single => {
@@ -1457,12 +1486,17 @@ fn edit_buffers(
 }
 
 /// The output buffer's URI: none in a GLB (it is the BIN chunk), a `data:` URI in a `.gltf`.
-fn bin_uri(layout: &Layout<'_>, format: OutputFormat) -> Option<String> {
+fn bin_uri(
+    layout: &Layout<'_>,
+    format: OutputFormat,
+    changes: &Changes,
+    images: &Images,
+) -> Option<String> {
     match format {
         OutputFormat::Glb => None,
         OutputFormat::GltfEmbedded => Some(format!(
             "data:application/octet-stream;base64,{}",
-            base64(&layout.bin.to_vec())
+            base64(&layout.bin.to_vec(changes, images))
         )),
     }
 }
@@ -1546,11 +1580,15 @@ fn emit(
     json_text: String,
     layout: &Layout<'_>,
     format: OutputFormat,
+    (changes, images): (&Changes, &Images),
 ) -> Result<Vec<u8>, SceneError> {
     match format {
         OutputFormat::Glb => glb::write_pieces(
             json_text.as_bytes(),
-            layout.bin_needed.then(|| layout.bin.slices()).as_deref(),
+            layout
+                .bin_needed
+                .then(|| layout.bin.slices(changes, images))
+                .as_deref(),
             if loaded.container == Container::Glb {
                 &loaded.other_chunks
             } else {
@@ -1559,6 +1597,94 @@ fn emit(
         )
         .map_err(|e| SceneError::new(ProblemCode::OutputTooLarge, format!("the output {e}"))),
         OutputFormat::GltfEmbedded => Ok(json_text.into_bytes()),
+    }
+}
+
+/// The GLB as [`Pieces`]: its framing and JSON, then the BIN chunk's pieces, the new views' and
+/// images' data moved out of `changes` and `images` rather than copied, and ranges of `input`
+/// for what lies in it (the kept views of a GLB's BIN chunk, the chunks after BIN).
+fn emit_pieces(
+    loaded: &Loaded<'_>,
+    json_text: &str,
+    layout: Layout<'_>,
+    (changes, images): (&mut Changes, &mut Images),
+    input: &[u8],
+) -> Result<pieces::Pieces, SceneError> {
+    let other: &[glb::Chunk<'_>] = if loaded.container == Container::Glb {
+        &loaded.other_chunks
+    } else {
+        &[]
+    };
+    let mut lengths = vec![(glb::CHUNK_JSON, json_text.len())];
+    if layout.bin_needed {
+        lengths.push((glb::CHUNK_BIN, layout.bin.len()));
+    }
+    lengths.extend(other.iter().map(|c| (c.kind, c.data.len())));
+    let framing = glb::Framing::of(&lengths)
+        .map_err(|e| SceneError::new(ProblemCode::OutputTooLarge, format!("the output {e}")))?;
+    let mut chunks = framing.chunks.iter();
+    let mut head = framing.header.to_vec();
+    let json_at = match chunks.next() {
+        Some(json) => {
+            head.extend_from_slice(&json.header);
+            let at = head.len();
+            head.extend_from_slice(json_text.as_bytes());
+            head.resize(head.len() + json.padding, json.pad_byte);
+            at
+        }
+        None => head.len(),
+    };
+    let json_range = json_at..json_at + json_text.len();
+    let bin_chunk = if layout.bin_needed {
+        chunks.next()
+    } else {
+        None
+    };
+    if let Some(bin) = bin_chunk {
+        head.extend_from_slice(&bin.header);
+    }
+    let mut pieces = pieces::Pieces::new(head, json_range);
+    if let Some(bin) = bin_chunk {
+        for piece in layout.bin.parts {
+            pieces.push(match piece {
+                Piece::Borrowed(bytes) => part_of(bytes, input),
+                Piece::Owned(bytes) => Part::Owned(bytes),
+                Piece::View(i) => Part::Owned(
+                    changes
+                        .views
+                        .get_mut(i)
+                        .map(|v| std::mem::take(&mut v.data))
+                        .unwrap_or_default(),
+                ),
+                Piece::Image(i) => Part::Owned(
+                    images
+                        .data
+                        .get_mut(i)
+                        .map(std::mem::take)
+                        .unwrap_or_default(),
+                ),
+            });
+        }
+        pieces.push(Part::Owned(vec![bin.pad_byte; bin.padding]));
+    }
+    for (chunk, framing) in other.iter().zip(chunks) {
+        pieces.push(Part::Owned(framing.header.to_vec()));
+        pieces.push(part_of(chunk.data, input));
+        pieces.push(Part::Owned(vec![framing.pad_byte; framing.padding]));
+    }
+    Ok(pieces)
+}
+
+/// `bytes` as a range of `input` when it lies there, else a copy.
+fn part_of(bytes: &[u8], input: &[u8]) -> Part {
+    let within = input.as_ptr_range();
+    let start = bytes.as_ptr() as usize;
+    let (low, high) = (within.start as usize, within.end as usize);
+    if !bytes.is_empty() && start >= low && start + bytes.len() <= high {
+        let at = start - low;
+        Part::Input(at..at + bytes.len())
+    } else {
+        Part::Owned(bytes.to_vec())
     }
 }
 
@@ -2265,6 +2391,7 @@ fn edit_buffers_packed(
     loaded: &Loaded<'_>,
     buffers: &BufferMap<'_>,
     layout: &Layout<'_>,
+    (changes, images): (&Changes, &Images),
     format: OutputFormat,
     warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
@@ -2272,7 +2399,7 @@ fn edit_buffers_packed(
     let Some(packed) = &layout.packed else {
         return Ok(());
     };
-    let bin_uri = bin_uri(layout, format);
+    let bin_uri = bin_uri(layout, format, changes, images);
     let mut entries: Vec<String> = Vec::new();
     if layout.bin_needed {
         entries.push(merged_entry(loaded, buffers, layout, bin_uri, warnings)?);
