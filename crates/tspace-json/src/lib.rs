@@ -50,7 +50,7 @@
 //! let out = editor.render()?;
 //!
 //! // Only the generator's value was rewritten.
-//! let old = asset.get("generator").unwrap().span.clone();
+//! let old = asset.get("generator").unwrap().span();
 //! let new = "\"tspace\"";
 //! let source = doc.source();
 //! assert_eq!(&out[..old.start], &source[..old.start]);
@@ -74,10 +74,16 @@ pub const MAX_DEPTH: usize = 128;
 const BOM: &[u8] = b"\xEF\xBB\xBF";
 
 /// A JSON value and where it sits in the source text.
+///
+/// Small, because a glTF document of many small objects is mostly nodes: 32 bytes, with
+/// every short key, string and number held inside (see [`Text`]), so that a node and a member
+/// cost about four times their JSON text, not twelve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Node {
     /// Byte range of the value's text in the source, from its first to its last byte.
-    pub span: Range<usize>,
+    /// Offsets are 32-bit: [`Document::parse`] refuses longer texts.
+    start: u32,
+    end: u32,
     /// What the value is; arrays and objects hold their children here.
     pub kind: Kind,
 }
@@ -92,27 +98,149 @@ pub enum Kind {
     /// A number, kept as spelled in the source.
     Number(Number),
     /// The decoded string (escapes resolved).
-    String(String),
+    String(Text),
     /// Elements in source order.
-    Array(Vec<Node>),
+    Array(Box<[Node]>),
     /// Members in source order. Keys are unique (the parser rejects duplicates).
-    Object(Vec<Member>),
+    Object(Box<[Member]>),
 }
 
-/// One `"key": value` pair of an object.
+/// One `"key": value` pair of an object. The key's own span is found from the value's when an
+/// edit needs it ([`Document::key_span`]), rather than kept in every member.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Member {
     /// The decoded key.
-    pub key: String,
-    /// Byte range of the key's text, quotes included.
-    pub key_span: Range<usize>,
+    pub key: Text,
     /// The member's value; its span covers the value only, not the key or colon.
     pub value: Node,
 }
 
 /// A number as spelled in the source, already checked against the JSON grammar.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Number(Box<str>);
+pub struct Number(Text);
+
+// What keeps a document of small objects at a few times its text; a change that grows these
+// should be a decision.
+const _: () = assert!(std::mem::size_of::<Text>() == 16);
+const _: () = assert!(std::mem::size_of::<Node>() == 32);
+const _: () = assert!(std::mem::size_of::<Member>() == 48);
+
+/// How many bytes of text a [`Text`] holds without an allocation of its own.
+const INLINE: usize = 14;
+
+/// A key's, string's or number's text, held inside the node when it is short (most of a glTF
+/// document's keys and numbers are: `"componentType"`, `5126`) and on the heap otherwise. An
+/// allocation per key and number would cost more than the text, and bookkeeping besides.
+/// Reads as a `str` (it dereferences to one) and compares with `str` and `String`.
+#[derive(Clone, PartialEq, Eq, Hash)]
+pub struct Text(Repr);
+
+#[derive(Clone, PartialEq, Eq, Hash)]
+enum Repr {
+    /// `bytes[..len]` is the text and the rest zeros, so that equal texts are equal values.
+    Inline { len: u8, bytes: [u8; INLINE] },
+    /// Boxed twice: the thin pointer keeps a `Text` at 16 bytes. Only texts longer than
+    /// [`INLINE`] bytes pay the second allocation.
+    Heap(Box<Box<str>>),
+}
+
+impl Text {
+    /// `s` as a text.
+    pub fn new(s: &str) -> Text {
+        if s.len() > INLINE {
+            return Text(Repr::Heap(Box::new(s.into())));
+        }
+        let mut bytes = [0u8; INLINE];
+        bytes[..s.len()].copy_from_slice(s.as_bytes());
+        Text(Repr::Inline {
+            len: s.len() as u8,
+            bytes,
+        })
+    }
+
+    /// The text as a `str`.
+    pub fn as_str(&self) -> &str {
+        match &self.0 {
+            // Copied whole from a `str`, so always UTF-8.
+            Repr::Inline { .. } => std::str::from_utf8(self.as_bytes()).unwrap_or(""),
+            Repr::Heap(s) => s,
+        }
+    }
+
+    fn as_bytes(&self) -> &[u8] {
+        match &self.0 {
+            Repr::Inline { len, bytes } => bytes.get(..usize::from(*len)).unwrap_or(&[]),
+            Repr::Heap(s) => s.as_bytes(),
+        }
+    }
+}
+
+impl From<String> for Text {
+    fn from(s: String) -> Text {
+        if s.len() > INLINE {
+            Text(Repr::Heap(Box::new(s.into_boxed_str())))
+        } else {
+            Text::new(&s)
+        }
+    }
+}
+
+impl std::ops::Deref for Text {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        self.as_str()
+    }
+}
+
+impl fmt::Debug for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self.as_str(), f)
+    }
+}
+
+impl fmt::Display for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+// Byte comparisons: no UTF-8 check on the path of every `Node::get`.
+impl PartialEq<str> for Text {
+    fn eq(&self, other: &str) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<&str> for Text {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<String> for Text {
+    fn eq(&self, other: &String) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<Text> for str {
+    fn eq(&self, other: &Text) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<Text> for &str {
+    fn eq(&self, other: &Text) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<Text> for String {
+    fn eq(&self, other: &Text) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
 
 impl Number {
     /// The source text, e.g. `-0`, `1e400`, `3.0`.
@@ -177,13 +305,18 @@ impl Number {
 }
 
 impl Node {
+    /// Byte range of the value's text in the source, from its first to its last byte.
+    pub fn span(&self) -> Range<usize> {
+        self.start as usize..self.end as usize
+    }
+
     /// The value of member `key`, if this is an object that has it.
     pub fn get(&self, key: &str) -> Option<&Node> {
         self.member(key).map(|m| &m.value)
     }
 
-    /// Member `key` with its key span, if this is an object that has it. Like [`Node::get`],
-    /// for when the key's position matters too.
+    /// Member `key`, if this is an object that has it. Like [`Node::get`], for when the
+    /// member itself matters ([`Document::key_span`]).
     pub fn member(&self, key: &str) -> Option<&Member> {
         self.as_object()?.iter().find(|m| m.key == key)
     }
@@ -212,7 +345,7 @@ impl Node {
     /// The decoded string (escapes resolved, lone surrogates as U+FFFD), if this is a string.
     pub fn as_str(&self) -> Option<&str> {
         match &self.kind {
-            Kind::String(s) => Some(s),
+            Kind::String(s) => Some(s.as_str()),
             _ => None,
         }
     }
@@ -286,12 +419,24 @@ impl<'a> Document<'a> {
             let valid = bytes.get(..at).and_then(|b| std::str::from_utf8(b).ok());
             ParseError::new(valid.unwrap_or(""), at, ParseErrorKind::InvalidUtf8)
         })?;
+        if u32::try_from(bytes.len()).is_err() {
+            return Err(ParseError::new(
+                "",
+                0,
+                ParseErrorKind::TooLong {
+                    limit: u32::MAX as usize,
+                },
+            ));
+        }
         let body_start = if bytes.starts_with(BOM) { BOM.len() } else { 0 };
         let mut parser = Parser {
             text: source,
             bytes,
             pos: body_start,
             depth: 0,
+            elements: Vec::new(),
+            members: Vec::new(),
+            key_starts: Vec::new(),
         };
         let root = parser
             .document()
@@ -321,7 +466,39 @@ impl<'a> Document<'a> {
 
     /// The source text of `node`, exactly as written.
     pub fn text(&self, node: &Node) -> &'a str {
-        self.source.get(node.span.clone()).unwrap_or("")
+        self.source.get(node.span()).unwrap_or("")
+    }
+
+    /// The byte range of `member`'s key, quotes included: found by reading back from its value
+    /// over the colon to the key's opening quote. `None` when what precedes the value here is no
+    /// key and colon (a member of another document).
+    pub fn key_span(&self, member: &Member) -> Option<Range<usize>> {
+        let bytes = self.source.as_bytes();
+        let ws = |b: &u8| matches!(b, b' ' | b'\t' | b'\n' | b'\r');
+        let before_value = bytes.get(..member.value.span().start)?;
+        let colon = before_value.iter().rposition(|b| !ws(b))?;
+        let before_colon = bytes
+            .get(..colon)
+            .filter(|_| bytes.get(colon) == Some(&b':'))?;
+        let close = before_colon.iter().rposition(|b| !ws(b))?;
+        if bytes.get(close) != Some(&b'"') {
+            return None;
+        }
+        // Inside a string every quote is escaped, that is preceded by an odd number of
+        // backslashes; the opening quote follows no backslash at all.
+        let mut at = close;
+        loop {
+            at = bytes.get(..at)?.iter().rposition(|&b| b == b'"')?;
+            let backslashes = bytes
+                .get(..at)?
+                .iter()
+                .rev()
+                .take_while(|&&b| b == b'\\')
+                .count();
+            if backslashes % 2 == 0 {
+                return Some(at..close + 1);
+            }
+        }
     }
 
     /// A new editor with no edits for this document (the same as [`Editor::new`]).
@@ -391,6 +568,11 @@ pub enum ParseErrorKind {
         /// The decoded key.
         key: String,
     },
+    /// The text is longer than node offsets can say (4 GiB); `offset` is 0.
+    TooLong {
+        /// The most bytes a document may have.
+        limit: usize,
+    },
     /// Something other than whitespace after the top-level value; `offset` is at it.
     TrailingCharacters {
         /// The first such character.
@@ -445,6 +627,9 @@ impl fmt::Display for ParseError {
             ParseErrorKind::DuplicateKey { key } => {
                 write!(f, "the key {key:?} appears twice in one object")
             }
+            ParseErrorKind::TooLong { limit } => {
+                write!(f, "the text is longer than {limit} bytes")
+            }
             ParseErrorKind::TrailingCharacters { found } => {
                 write!(f, "found {found:?} after the end of the top-level value")
             }
@@ -461,6 +646,14 @@ struct Parser<'a> {
     bytes: &'a [u8],
     pos: usize,
     depth: usize,
+    /// The elements of the arrays being read, innermost last. A closing array takes its own
+    /// off the end, in one allocation of exactly their number: no growth, no slack, one
+    /// working list for the whole document.
+    elements: Vec<Node>,
+    /// The same for objects' members,
+    members: Vec<Member>,
+    /// and where each of their keys starts, for duplicate-key errors.
+    key_starts: Vec<usize>,
 }
 
 impl Parser<'_> {
@@ -523,8 +716,10 @@ impl Parser<'_> {
             Some(b'n') => self.literal(b"null", Kind::Null)?,
             _ => return Err(self.unexpected("a value")),
         };
+        // `parse` refused texts whose offsets do not fit.
         Ok(Node {
-            span: start..self.pos,
+            start: start as u32,
+            end: self.pos as u32,
             kind,
         })
     }
@@ -550,15 +745,16 @@ impl Parser<'_> {
     fn array(&mut self) -> Result<Kind, Fail> {
         self.enter()?;
         self.pos += 1; // '['
-        let mut elements = Vec::new();
+        let base = self.elements.len();
         self.skip_ws();
         if self.peek() == Some(b']') {
             self.pos += 1;
             self.depth -= 1;
-            return Ok(Kind::Array(elements));
+            return Ok(Kind::Array(Box::default()));
         }
         loop {
-            elements.push(self.value()?);
+            let element = self.value()?;
+            self.elements.push(element);
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -571,10 +767,7 @@ impl Parser<'_> {
                 Some(b']') => {
                     self.pos += 1;
                     self.depth -= 1;
-                    // Growth leaves up to half of a vector unused; a scene of many small
-                    // objects would otherwise carry that slack in every one of them.
-                    elements.shrink_to_fit();
-                    return Ok(Kind::Array(elements));
+                    return Ok(Kind::Array(self.elements.drain(base..).collect()));
                 }
                 _ => return Err(self.unexpected("',' or ']'")),
             }
@@ -584,12 +777,12 @@ impl Parser<'_> {
     fn object(&mut self) -> Result<Kind, Fail> {
         self.enter()?;
         self.pos += 1; // '{'
-        let mut members = Vec::new();
+        let base = self.members.len();
         self.skip_ws();
         if self.peek() == Some(b'}') {
             self.pos += 1;
             self.depth -= 1;
-            return Ok(Kind::Object(members));
+            return Ok(Kind::Object(Box::default()));
         }
         loop {
             if self.peek() != Some(b'"') {
@@ -597,7 +790,6 @@ impl Parser<'_> {
             }
             let key_start = self.pos;
             let key = self.string()?;
-            let key_span = key_start..self.pos;
             self.skip_ws();
             if self.peek() != Some(b':') {
                 return Err(self.unexpected("':'"));
@@ -605,11 +797,8 @@ impl Parser<'_> {
             self.pos += 1;
             self.skip_ws();
             let value = self.value()?;
-            members.push(Member {
-                key,
-                key_span,
-                value,
-            });
+            self.members.push(Member { key, value });
+            self.key_starts.push(key_start);
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -622,18 +811,22 @@ impl Parser<'_> {
                 Some(b'}') => {
                     self.pos += 1;
                     self.depth -= 1;
-                    check_unique_keys(&members)?;
-                    members.shrink_to_fit();
-                    return Ok(Kind::Object(members));
+                    let members = self.members.get(base..).unwrap_or(&[]);
+                    let starts = self.key_starts.get(base..).unwrap_or(&[]);
+                    check_unique_keys(members, starts)?;
+                    self.key_starts.truncate(base);
+                    return Ok(Kind::Object(self.members.drain(base..).collect()));
                 }
                 _ => return Err(self.unexpected("',' or '}'")),
             }
         }
     }
 
-    fn string(&mut self) -> Result<String, Fail> {
+    /// A string's decoded text. Most have no escapes and are taken from the source as they
+    /// stand; the others are decoded into a buffer.
+    fn string(&mut self) -> Result<Text, Fail> {
         self.pos += 1; // opening quote
-        let mut out = String::new();
+        let mut out: Option<String> = None;
         loop {
             // Copy the run of plain characters in one piece. It starts and ends next to ASCII
             // bytes (or the end), so both ends are character boundaries.
@@ -644,14 +837,24 @@ impl Parser<'_> {
                 }
                 self.pos += 1;
             }
-            out.push_str(self.text.get(run_start..self.pos).unwrap_or(""));
+            let run = self.text.get(run_start..self.pos).unwrap_or("");
             match self.peek() {
                 None => return Err((self.pos, ParseErrorKind::UnexpectedEnd)),
                 Some(b'"') => {
                     self.pos += 1;
-                    return Ok(out);
+                    return Ok(match out {
+                        None => Text::new(run),
+                        Some(mut decoded) => {
+                            decoded.push_str(run);
+                            Text::from(decoded)
+                        }
+                    });
                 }
-                Some(b'\\') => self.escape(&mut out)?,
+                Some(b'\\') => {
+                    let decoded = out.get_or_insert_with(String::new);
+                    decoded.push_str(run);
+                    self.escape(decoded)?;
+                }
                 Some(byte) => return Err((self.pos, ParseErrorKind::ControlCharacter { byte })),
             }
         }
@@ -755,7 +958,7 @@ impl Parser<'_> {
             self.required_digits()?;
         }
         let raw = self.text.get(start..self.pos).unwrap_or("0");
-        Ok(Kind::Number(Number(raw.into())))
+        Ok(Kind::Number(Number(Text::new(raw))))
     }
 
     fn digits(&mut self) {
@@ -775,29 +978,29 @@ impl Parser<'_> {
 }
 
 /// Sorting beats hashing here: no hasher to seed against hostile keys, and no borrow of the
-/// member list while it is built.
-fn check_unique_keys(members: &[Member]) -> Result<(), Fail> {
+/// member list while it is built. `starts` holds where each member's key starts.
+fn check_unique_keys(members: &[Member], starts: &[usize]) -> Result<(), Fail> {
     if members.len() < 2 {
         return Ok(());
     }
-    let mut sorted: Vec<&Member> = members.iter().collect();
-    sorted.sort_by(|a, b| {
-        a.key
-            .cmp(&b.key)
-            .then(a.key_span.start.cmp(&b.key_span.start))
-    });
+    let start = |i: usize| starts.get(i).copied().unwrap_or(0);
+    let key = |i: usize| members.get(i).map_or("", |m| m.key.as_str());
+    let mut sorted: Vec<usize> = (0..members.len()).collect();
+    sorted.sort_by(|&a, &b| key(a).cmp(key(b)).then(start(a).cmp(&start(b))));
     // Of all the repeats, report the one that comes first in the text.
     let repeat = sorted
         .windows(2)
         .filter_map(|pair| match pair {
-            [a, b] if a.key == b.key => Some(*b),
+            [a, b] if key(*a) == key(*b) => Some(*b),
             _ => None,
         })
-        .min_by_key(|m| m.key_span.start);
+        .min_by_key(|&m| start(m));
     match repeat {
         Some(m) => Err((
-            m.key_span.start,
-            ParseErrorKind::DuplicateKey { key: m.key.clone() },
+            start(m),
+            ParseErrorKind::DuplicateKey {
+                key: key(m).to_owned(),
+            },
         )),
         None => Ok(()),
     }
@@ -935,7 +1138,7 @@ pub struct Editor<'d, 'a> {
 struct ObjectEdit {
     open: usize,
     /// Per original member: key span, value span, key, removed.
-    members: Vec<(Range<usize>, Range<usize>, String, bool)>,
+    members: Vec<(Range<usize>, Range<usize>, Text, bool)>,
     added: Vec<(String, NewValue)>,
 }
 
@@ -969,8 +1172,8 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// Replaces `node`'s text with `text`, which must be one JSON value.
     pub fn replace(&mut self, node: &Node, text: impl Into<String>) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
-        self.check_span(&node.span)?;
-        self.replacements.push((node.span.clone(), text));
+        self.check_span(&node.span())?;
+        self.replacements.push((node.span(), text));
         Ok(())
     }
 
@@ -1008,7 +1211,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
         match existing {
             Some((i, member)) if !edit.members.get(i).is_some_and(|m| m.3) => {
-                self.replacements.push((member.value.span.clone(), text));
+                self.replacements.push((member.value.span(), text));
             }
             _ => edit.added.push((key.into(), NewValue::Text(text))),
         }
@@ -1039,9 +1242,7 @@ impl<'d, 'a> Editor<'d, 'a> {
     ) -> Result<usize, EditError> {
         let text = checked_text(text.into())?;
         let Some(elements) = array.as_array() else {
-            return Err(EditError::NotAnArray {
-                span: array.span.clone(),
-            });
+            return Err(EditError::NotAnArray { span: array.span() });
         };
         let edit = self.array_edit(array, elements)?;
         edit.added.push(text);
@@ -1053,9 +1254,7 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// caller must reflect wherever they are referenced.
     pub fn remove_element(&mut self, array: &Node, index: usize) -> Result<bool, EditError> {
         let Some(elements) = array.as_array() else {
-            return Err(EditError::NotAnArray {
-                span: array.span.clone(),
-            });
+            return Err(EditError::NotAnArray { span: array.span() });
         };
         let edit = self.array_edit(array, elements)?;
         match edit.removed.get_mut(index) {
@@ -1068,13 +1267,13 @@ impl<'d, 'a> Editor<'d, 'a> {
     }
 
     fn array_edit(&mut self, array: &Node, elements: &[Node]) -> Result<&mut ArrayEdit, EditError> {
-        self.check_span(&array.span)?;
+        self.check_span(&array.span())?;
         Ok(self
             .arrays
-            .entry(array.span.start)
+            .entry(array.span().start)
             .or_insert_with(|| ArrayEdit {
-                open: array.span.start,
-                elements: elements.iter().map(|e| e.span.clone()).collect(),
+                open: array.span().start,
+                elements: elements.iter().map(|e| e.span()).collect(),
                 removed: vec![false; elements.len()],
                 added: Vec::new(),
             }))
@@ -1128,28 +1327,29 @@ impl<'d, 'a> Editor<'d, 'a> {
     fn object_edit(&mut self, object: &Node) -> Result<&mut ObjectEdit, EditError> {
         let Some(members) = object.as_object() else {
             return Err(EditError::NotAnObject {
-                span: object.span.clone(),
+                span: object.span(),
             });
         };
-        self.check_span(&object.span)?;
-        Ok(self
-            .objects
-            .entry(object.span.start)
-            .or_insert_with(|| ObjectEdit {
-                open: object.span.start,
-                members: members
-                    .iter()
-                    .map(|m| {
-                        (
-                            m.key_span.clone(),
-                            m.value.span.clone(),
-                            m.key.clone(),
-                            false,
-                        )
-                    })
-                    .collect(),
+        self.check_span(&object.span())?;
+        let open = object.span().start;
+        if !self.objects.contains_key(&open) {
+            let mut spans = Vec::with_capacity(members.len());
+            for m in members {
+                let key = self.doc.key_span(m).ok_or(EditError::ForeignNode {
+                    span: m.value.span(),
+                })?;
+                spans.push((key, m.value.span(), m.key.clone(), false));
+            }
+            let edit = ObjectEdit {
+                open,
+                members: spans,
                 added: Vec::new(),
-            }))
+            };
+            self.objects.insert(open, edit);
+        }
+        self.objects.get_mut(&open).ok_or(EditError::ForeignNode {
+            span: object.span(),
+        })
     }
 
     /// The edited document. Fails only on overlapping edits or nodes from another document.
@@ -1379,7 +1579,7 @@ mod tests {
         let doc = parse(ODD).unwrap();
         assert_eq!(doc.editor().render().unwrap(), ODD);
         let root = doc.root();
-        assert_eq!(root.span, 4..ODD.trim_end().len());
+        assert_eq!(root.span(), 4..ODD.trim_end().len());
         let a = root.get("a").unwrap();
         assert_eq!(doc.text(a.index(1).unwrap()), "2.50");
         assert_eq!(a.index(2).unwrap().as_number().unwrap().raw(), "-0");
@@ -1395,6 +1595,70 @@ mod tests {
             Some(0)
         );
         assert!(root.get("missing").is_none() && root.index(0).is_none());
+    }
+
+    #[test]
+    fn texts_read_the_same_inline_and_on_the_heap() {
+        // Either side of the inline limit, with a multi-byte character at the edge.
+        for text in [
+            "",
+            "a",
+            "componentType",
+            "exactly14bytes",
+            "fifteen bytes!!",
+            "é23456789012é",
+            "é234567890123é",
+        ] {
+            let t = Text::new(text);
+            assert_eq!(t.as_str(), text);
+            assert_eq!(t, *text);
+            assert_eq!(t, Text::from(text.to_owned()));
+            assert_eq!(format!("{t}"), text);
+            assert_eq!(format!("{t:?}"), format!("{text:?}"));
+        }
+        assert_ne!(Text::new("ab"), Text::new("abc"));
+        // Long keys, strings and numbers are found and compared like short ones.
+        let doc = parse(r#"{"KHR_materials_emissive_strength": "a string longer than fourteen", "n": 0.1000000000000000055511151231257827}"#).unwrap();
+        let root = doc.root();
+        assert_eq!(
+            root.get("KHR_materials_emissive_strength")
+                .and_then(Node::as_str),
+            Some("a string longer than fourteen")
+        );
+        let n = root.get("n").unwrap();
+        assert_eq!(
+            n.as_number().unwrap().raw(),
+            "0.1000000000000000055511151231257827"
+        );
+        assert_eq!(doc.text(n), "0.1000000000000000055511151231257827");
+    }
+
+    #[test]
+    fn key_spans_are_found_from_the_values() {
+        let text = r#"{ "a" : 1,"b\"":[2] , "\\":{},
+            "q\"\\\"" :null, "é\u00e9":"x"}"#;
+        let doc = parse(text).unwrap();
+        let spelled: Vec<&str> = doc
+            .root()
+            .as_object()
+            .unwrap()
+            .iter()
+            .map(|m| &text[doc.key_span(m).unwrap()])
+            .collect();
+        assert_eq!(
+            spelled,
+            [
+                r#""a""#,
+                r#""b\"""#,
+                r#""\\""#,
+                r#""q\"\\\"""#,
+                r#""é\u00e9""#
+            ]
+        );
+        // A member of another document, whose value follows no key and colon here.
+        let other = parse(r#"{"zzzzzzzzzzzzzzzzzzzzzzzzzzzzzz": 1}"#).unwrap();
+        let foreign = &other.root().as_object().unwrap()[0];
+        assert_eq!(doc.key_span(foreign), None);
     }
 
     #[test]
@@ -1545,7 +1809,7 @@ mod tests {
         let text = "\u{feff}{\"a\": 1}";
         let doc = parse(text).unwrap();
         assert!(doc.had_bom());
-        assert_eq!(doc.root().span, 3..text.len());
+        assert_eq!(doc.root().span(), 3..text.len());
         assert_eq!(doc.editor().render().unwrap(), "{\"a\": 1}");
         // Only at the very start.
         assert!(matches!(

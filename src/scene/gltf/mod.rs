@@ -1110,7 +1110,7 @@ impl Edits {
                     r
                 }
             };
-            members.push((member.key.clone(), r));
+            members.push((member.key.to_string(), r));
         }
         Ok(members)
     }
