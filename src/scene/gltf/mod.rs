@@ -69,13 +69,34 @@ pub struct Internal {
 }
 
 /// [`process`], with the choices of [`Internal`]: load, plan the jobs, compute them, report
-/// every primitive (collecting the edits as it goes), write.
+/// every primitive (collecting the edits as it goes), write; then measure what was written.
 pub fn process_with<'a>(
     bytes: &'a [u8],
     resources: &dyn Resources<'a>,
     options: &SceneOptions,
     internal: &Internal,
 ) -> Result<Processed, SceneError> {
+    let (mut processed, sizes_in) = process_and_write(bytes, resources, options, internal)?;
+    // The input's tree, the computations and the edits are gone by now: the output's tree,
+    // parsed next, does not come on top of them.
+    report_storage(
+        &mut processed.report,
+        sizes_in,
+        processed.bytes.as_deref(),
+        options.format,
+    )?;
+    processed.report.finish();
+    Ok(processed)
+}
+
+/// Everything but measuring the output: the scene processed and written, with the input's
+/// mesh sizes. What it builds on the way, the input's tree first, is dropped when it returns.
+fn process_and_write<'a>(
+    bytes: &'a [u8],
+    resources: &dyn Resources<'a>,
+    options: &SceneOptions,
+    internal: &Internal,
+) -> Result<(Processed, sizes::MeshSizes), SceneError> {
     let limits = options.limits;
     let load_limits = LoadLimits {
         max_buffer_bytes: limits.max_buffer_bytes,
@@ -134,6 +155,10 @@ pub fn process_with<'a>(
         report_painting(&mut report, root, &painted, &mut edits);
     }
     SceneError::check(cancel)?;
+    let sizes_in = sizes::measure(root);
+    // The writer reads the input and the edits alone: what the computations left goes before
+    // it allocates the output (in a scene of many small primitives, as much as the output).
+    drop((plans, jobs, decoded, computed, painted));
     let bytes = write_scene(
         bytes,
         &loaded,
@@ -142,13 +167,12 @@ pub fn process_with<'a>(
         resources,
         &mut report,
     )?;
-    report_storage(&mut report, root, bytes.as_deref(), options.format)?;
-    report.finish();
-    Ok(Processed {
+    let processed = Processed {
         bytes,
         report,
         layouts,
-    })
+    };
+    Ok((processed, sizes_in))
 }
 
 /// Every job's marks: each triangle's findings and each flip vertex, by the same test the core's
@@ -826,15 +850,15 @@ fn add_deltas(changes: &mut Changes, deltas: &[[f32; 3]], snorm: Option<Snorm>) 
     }
 }
 
-/// Each primitive's storage in and out, and the scene's mesh bytes, from the input's document and
-/// (when written) the output's, which is parsed again: the sizes are what the files declare.
+/// Each primitive's storage in and out, and the scene's mesh bytes, from the input's sizes and
+/// (when written) the output's document, which is parsed again: the sizes are what the files
+/// declare.
 fn report_storage(
     report: &mut Report,
-    root: &Node,
+    before: sizes::MeshSizes,
     output: Option<&[u8]>,
     format: OutputFormat,
 ) -> Result<(), SceneError> {
-    let before = sizes::measure(root);
     let after = output
         .map(|bytes| output_sizes(bytes, format))
         .transpose()?;
