@@ -63,6 +63,7 @@
 
 #![warn(missing_docs)]
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::ops::Range;
@@ -1354,8 +1355,22 @@ impl<'d, 'a> Editor<'d, 'a> {
 
     /// The edited document. Fails only on overlapping edits or nodes from another document.
     pub fn render(&self) -> Result<String, EditError> {
+        let rendered = self.rendered()?;
+        let mut out = String::with_capacity(rendered.len());
+        rendered.for_each_part(|part| out.push_str(part));
+        Ok(out)
+    }
+
+    /// The edited document as the pieces it is made of, checked like [`Editor::render`]'s,
+    /// for a caller that copies it once into a larger output (a GLB's JSON chunk) rather than
+    /// hold a text of it besides.
+    pub fn rendered(&self) -> Result<Rendered<'_>, EditError> {
         let source = self.doc.source;
-        let mut pieces: Vec<(Range<usize>, String)> = self.replacements.clone();
+        let mut pieces: Vec<(Range<usize>, Cow<'_, str>)> = self
+            .replacements
+            .iter()
+            .map(|(range, text)| (range.clone(), Cow::Borrowed(text.as_str())))
+            .collect();
         for edit in self.arrays.values() {
             edit.pieces(source, &mut pieces)?;
         }
@@ -1366,8 +1381,9 @@ impl<'d, 'a> Editor<'d, 'a> {
         // insertion at the start of a replaced span goes before it.
         pieces.sort_by_key(|(range, _)| (range.start, range.end));
 
-        let mut out = String::with_capacity(source.len());
-        let mut cursor = self.doc.body_start;
+        let body_start = self.doc.body_start;
+        let mut len = source.len().saturating_sub(body_start);
+        let mut cursor = body_start;
         let mut previous = cursor..cursor;
         for (range, text) in &pieces {
             if range.start < cursor {
@@ -1376,18 +1392,55 @@ impl<'d, 'a> Editor<'d, 'a> {
                     second: range.clone(),
                 });
             }
-            let kept = source
-                .get(cursor..range.start)
-                .ok_or(EditError::ForeignNode {
+            if source.get(cursor..range.start).is_none() || source.get(range.clone()).is_none() {
+                return Err(EditError::ForeignNode {
                     span: range.clone(),
-                })?;
-            out.push_str(kept);
-            out.push_str(text);
+                });
+            }
+            len = len - range.len() + text.len();
             cursor = range.end;
             previous = range.clone();
         }
-        out.push_str(source.get(cursor..).unwrap_or(""));
-        Ok(out)
+        Ok(Rendered {
+            source,
+            body_start,
+            pieces,
+            len,
+        })
+    }
+}
+
+/// An edited document in pieces: the source's kept runs and the edits' new text, in order
+/// ([`Editor::rendered`]). Every piece was checked to lie in the source, after the one before.
+#[derive(Debug)]
+pub struct Rendered<'e> {
+    source: &'e str,
+    body_start: usize,
+    pieces: Vec<(Range<usize>, Cow<'e, str>)>,
+    len: usize,
+}
+
+impl Rendered<'_> {
+    /// The length of the edited text in bytes.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the edited text is empty (never, for a document: it holds a value).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Calls `f` with each part of the edited text in order; together they are
+    /// [`Rendered::len`] bytes.
+    pub fn for_each_part(&self, mut f: impl FnMut(&str)) {
+        let mut cursor = self.body_start;
+        for (range, text) in &self.pieces {
+            f(self.source.get(cursor..range.start).unwrap_or(""));
+            f(text);
+            cursor = range.end;
+        }
+        f(self.source.get(cursor..).unwrap_or(""));
     }
 }
 
@@ -1433,7 +1486,7 @@ fn removal_pieces(
     start: impl Fn(usize) -> usize,
     end: impl Fn(usize) -> usize,
     source: &str,
-    out: &mut Vec<(Range<usize>, String)>,
+    out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
 ) -> Result<(), EditError> {
     let mut i = 0;
     while i < n {
@@ -1454,7 +1507,7 @@ fn removal_pieces(
             start(first)..end(last)
         };
         slice(source, range.clone())?;
-        out.push((range, String::new()));
+        out.push((range, Cow::Borrowed("")));
     }
     Ok(())
 }
@@ -1464,7 +1517,11 @@ impl ObjectEdit {
         self.members.iter().any(|m| m.2 == key && !m.3) || self.added.iter().any(|(k, _)| k == key)
     }
 
-    fn pieces(&self, source: &str, out: &mut Vec<(Range<usize>, String)>) -> Result<(), EditError> {
+    fn pieces(
+        &self,
+        source: &str,
+        out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
+    ) -> Result<(), EditError> {
         let n = self.members.len();
         let start = |i: usize| self.members.get(i).map_or(0, |m| m.0.start);
         let end = |i: usize| self.members.get(i).map_or(0, |m| m.1.end);
@@ -1507,13 +1564,17 @@ impl ObjectEdit {
                 }
             }
         }
-        out.push((at..at, text));
+        out.push((at..at, Cow::Owned(text)));
         Ok(())
     }
 }
 
 impl ArrayEdit {
-    fn pieces(&self, source: &str, out: &mut Vec<(Range<usize>, String)>) -> Result<(), EditError> {
+    fn pieces(
+        &self,
+        source: &str,
+        out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
+    ) -> Result<(), EditError> {
         let n = self.elements.len();
         let removed = |i: usize| self.removed.get(i).copied().unwrap_or(false);
         let start = |i: usize| self.elements.get(i).map_or(0, |e| e.start);
@@ -1539,7 +1600,7 @@ impl ArrayEdit {
             }
             text.push_str(item);
         }
-        out.push((at..at, text));
+        out.push((at..at, Cow::Owned(text)));
         Ok(())
     }
 }

@@ -260,33 +260,64 @@ pub fn write(
     bin: Option<&[u8]>,
     other_chunks: &[Chunk<'_>],
 ) -> Result<Vec<u8>, GlbError> {
-    let chunks: Vec<(u32, &[u8], u8)> = std::iter::once((CHUNK_JSON, json, b' '))
-        .chain(bin.map(|b| (CHUNK_BIN, b, 0)))
-        .chain(other_chunks.iter().map(|c| (c.kind, c.data, 0)))
-        .collect();
+    write_with(
+        json.len(),
+        |out| out.extend_from_slice(json),
+        bin,
+        other_chunks,
+    )
+}
 
+/// [`write`], with the JSON written into the file by `json` (which appends `json_len` bytes)
+/// rather than copied from a text of its own: an edited document goes straight into its
+/// chunk. The lengths in the headers are those of what was written.
+pub fn write_with(
+    json_len: usize,
+    json: impl FnOnce(&mut Vec<u8>),
+    bin: Option<&[u8]>,
+    other_chunks: &[Chunk<'_>],
+) -> Result<Vec<u8>, GlbError> {
+    let after_json: Vec<(u32, &[u8])> = bin
+        .map(|b| (CHUNK_BIN, b))
+        .into_iter()
+        .chain(other_chunks.iter().map(|c| (c.kind, c.data)))
+        .collect();
     // Lengths come from slices that exist, so u64 cannot overflow; the format's u32 can.
-    let total: u64 = HEADER_LEN as u64
-        + chunks
+    let chunk_len = |len: usize| CHUNK_HEADER_LEN as u64 + padded_len(len as u64);
+    let planned = HEADER_LEN as u64
+        + chunk_len(json_len)
+        + after_json
             .iter()
-            .map(|(_, data, _)| CHUNK_HEADER_LEN as u64 + padded_len(data.len() as u64))
+            .map(|(_, d)| chunk_len(d.len()))
             .sum::<u64>();
-    let too_large = GlbError::TooLarge { bytes: total };
-    let total_u32 = u32::try_from(total).map_err(|_| too_large.clone())?;
-    let capacity = usize::try_from(total).map_err(|_| too_large)?;
+    let too_large = |bytes: u64| GlbError::TooLarge { bytes };
+    u32::try_from(planned).map_err(|_| too_large(planned))?;
+    let capacity = usize::try_from(planned).map_err(|_| too_large(planned))?;
 
     let mut out = Vec::with_capacity(capacity);
     out.extend_from_slice(&MAGIC.to_le_bytes());
     out.extend_from_slice(&VERSION.to_le_bytes());
-    out.extend_from_slice(&total_u32.to_le_bytes());
-    for (kind, data, pad) in chunks {
-        // Each padded length is at most the total, which fits in u32.
-        let padded = padded_len(data.len() as u64) as u32;
-        out.extend_from_slice(&padded.to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes()); // the total, once known
+    let json_header = out.len();
+    out.extend_from_slice(&0u32.to_le_bytes()); // the JSON chunk's length, once known
+    out.extend_from_slice(&CHUNK_JSON.to_le_bytes());
+    let json_start = out.len();
+    json(&mut out);
+    let written = out.len() - json_start;
+    out.resize(json_start + padded_len(written as u64) as usize, b' ');
+    let json_chunk = u32::try_from(out.len() - json_start).map_err(|_| too_large(planned))?;
+    out[json_header..json_header + 4].copy_from_slice(&json_chunk.to_le_bytes());
+    for (kind, data) in after_json {
+        let padded = padded_len(data.len() as u64);
+        let padded_u32 = u32::try_from(padded).map_err(|_| too_large(padded))?;
+        out.extend_from_slice(&padded_u32.to_le_bytes());
         out.extend_from_slice(&kind.to_le_bytes());
         out.extend_from_slice(data);
-        out.resize(out.len() + (padded as usize - data.len()), pad);
+        out.resize(out.len() + (padded as usize - data.len()), 0);
     }
+    let total = out.len() as u64;
+    let total_u32 = u32::try_from(total).map_err(|_| too_large(total))?;
+    out[8..12].copy_from_slice(&total_u32.to_le_bytes());
     Ok(out)
 }
 

@@ -553,9 +553,8 @@ pub fn write(
             describe_compression(&compressed_views, layout.packed.as_ref()),
         ));
     }
-    let json_text = editor.render().map_err(edit_error)?;
-
-    let bytes = emit(loaded, json_text, &layout, format)?;
+    let json_text = editor.rendered().map_err(edit_error)?;
+    let bytes = emit(loaded, &json_text, &layout, format)?;
     let dropped = Dropped {
         accessors: (numbering.accessor_map.len() - numbering.kept_accessors) as u64,
         buffer_views: (numbering.view_map.len() - numbering.kept_views) as u64,
@@ -1466,16 +1465,18 @@ fn merged_buffer(
     }
 }
 
-/// The container: a GLB (keeping the input GLB's chunks after BIN), or the `.gltf` JSON.
+/// The container: a GLB (keeping the input GLB's chunks after BIN), or the `.gltf` JSON. The
+/// edited JSON is written straight into it, never held as a text of its own besides.
 fn emit(
     loaded: &Loaded<'_>,
-    json_text: String,
+    json: &json::Rendered<'_>,
     layout: &Layout,
     format: OutputFormat,
 ) -> Result<Vec<u8>, SceneError> {
     match format {
-        OutputFormat::Glb => glb::write(
-            json_text.as_bytes(),
+        OutputFormat::Glb => glb::write_with(
+            json.len(),
+            |out| json.for_each_part(|part| out.extend_from_slice(part.as_bytes())),
             layout.bin_needed.then_some(layout.bin.as_slice()),
             if loaded.container == Container::Glb {
                 &loaded.other_chunks
@@ -1484,7 +1485,11 @@ fn emit(
             },
         )
         .map_err(|e| SceneError::new(ProblemCode::OutputTooLarge, format!("the output {e}"))),
-        OutputFormat::GltfEmbedded => Ok(json_text.into_bytes()),
+        OutputFormat::GltfEmbedded => {
+            let mut out = Vec::with_capacity(json.len());
+            json.for_each_part(|part| out.extend_from_slice(part.as_bytes()));
+            Ok(out)
+        }
     }
 }
 
