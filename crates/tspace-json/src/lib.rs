@@ -1355,7 +1355,12 @@ impl<'d, 'a> Editor<'d, 'a> {
 
     /// The edited document. Fails only on overlapping edits or nodes from another document.
     pub fn render(&self) -> Result<String, EditError> {
-        let rendered = self.rendered()?;
+        let replacements = self
+            .replacements
+            .iter()
+            .map(|(range, text)| (range.clone(), Cow::Borrowed(text.as_str())))
+            .collect();
+        let rendered = self.pieces(replacements)?;
         let mut out = String::with_capacity(rendered.len());
         rendered.for_each_part(|part| out.push_str(part));
         Ok(out)
@@ -1363,14 +1368,26 @@ impl<'d, 'a> Editor<'d, 'a> {
 
     /// The edited document as the pieces it is made of, checked like [`Editor::render`]'s,
     /// for a caller that copies it once into a larger output (a GLB's JSON chunk) rather than
-    /// hold a text of it besides.
-    pub fn rendered(&self) -> Result<Rendered<'_>, EditError> {
-        let source = self.doc.source;
-        let mut pieces: Vec<(Range<usize>, Cow<'_, str>)> = self
-            .replacements
-            .iter()
-            .map(|(range, text)| (range.clone(), Cow::Borrowed(text.as_str())))
+    /// hold a text of it besides. It borrows the source text alone: the editor's bookkeeping
+    /// and the document's tree can go before the output is made.
+    pub fn into_rendered(mut self) -> Result<Rendered<'a>, EditError> {
+        let replacements = std::mem::take(&mut self.replacements)
+            .into_iter()
+            .map(|(range, text)| (range, Cow::Owned(text)))
             .collect();
+        self.pieces(replacements)
+    }
+
+    /// Every edit as a piece of text replacing a range of the source, in order, checked: the
+    /// replacements, then the arrays' and objects' edits (the order that settles ties).
+    fn pieces<'p>(
+        &self,
+        mut pieces: Vec<(Range<usize>, Cow<'p, str>)>,
+    ) -> Result<Rendered<'p>, EditError>
+    where
+        'a: 'p,
+    {
+        let source = self.doc.source;
         for edit in self.arrays.values() {
             edit.pieces(source, &mut pieces)?;
         }
@@ -1411,7 +1428,7 @@ impl<'d, 'a> Editor<'d, 'a> {
 }
 
 /// An edited document in pieces: the source's kept runs and the edits' new text, in order
-/// ([`Editor::rendered`]). Every piece was checked to lie in the source, after the one before.
+/// ([`Editor::into_rendered`]). Every piece was checked to lie in the source, after the one before.
 #[derive(Debug)]
 pub struct Rendered<'e> {
     source: &'e str,

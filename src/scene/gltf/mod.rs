@@ -158,15 +158,13 @@ fn process_and_write<'a>(
     let sizes_in = sizes::measure(root);
     // The writer reads the input and the edits alone: what the computations left goes before
     // it allocates the output (in a scene of many small primitives, as much as the output).
-    drop((plans, jobs, decoded, computed, painted));
-    let bytes = write_scene(
-        bytes,
-        &loaded,
-        &edits.changes,
-        options,
-        resources,
-        &mut report,
-    )?;
+    let Edits {
+        changes,
+        job_refs,
+        remapped,
+    } = edits;
+    drop((plans, jobs, decoded, computed, painted, job_refs, remapped));
+    let bytes = write_scene(bytes, loaded, changes, options, resources, &mut report)?;
     let processed = Processed {
         bytes,
         report,
@@ -719,8 +717,8 @@ fn add_totals(report: &mut Report, computed: &[Computed], edits: &Edits) {
 /// The output, unless only analysing; what the writer found goes into the report.
 fn write_scene<'a>(
     bytes: &[u8],
-    loaded: &load::Loaded<'a>,
-    changes: &Changes,
+    loaded: load::Loaded<'a>,
+    changes: Changes,
     options: &SceneOptions,
     resources: &dyn Resources<'a>,
     report: &mut Report,

@@ -462,14 +462,37 @@ fn sniff_image(bytes: &[u8]) -> Option<&'static str> {
 
 /// Writes the scene with `changes` applied: find what the edits leave unreferenced and whether
 /// it may go, gather the images a GLB must carry, lay out the one output buffer, edit the JSON
-/// to match it, and emit the container.
+/// to match it, and emit the container. Takes the loaded scene and the changes, because they
+/// go before the container is made: only the input's text, the edited JSON's new pieces and
+/// the output buffer are left when it is allocated.
 pub fn write(
-    loaded: &Loaded<'_>,
-    changes: &Changes,
+    loaded: Loaded<'_>,
+    changes: Changes,
     format: OutputFormat,
     compression: Compression,
     resources: &dyn Resources<'_>,
 ) -> Result<Written, SceneError> {
+    let (json, layout, written) = edit(&loaded, &changes, format, compression, resources)?;
+    let Loaded {
+        container,
+        doc,
+        buffers,
+        other_chunks,
+    } = loaded;
+    drop((doc, buffers, changes));
+    let bytes = emit(container, &other_chunks, &json, &layout, format)?;
+    Ok(Written { bytes, ..written })
+}
+
+/// Everything [`write()`] does but emit the container: the edited JSON, the output buffer,
+/// and what the report needs to know (with no bytes yet).
+fn edit<'a>(
+    loaded: &Loaded<'a>,
+    changes: &Changes,
+    format: OutputFormat,
+    compression: Compression,
+    resources: &dyn Resources<'_>,
+) -> Result<(json::Rendered<'a>, Layout, Written), SceneError> {
     let root = loaded.doc.root();
     let output = compress::resolve(compression, root);
     let mut warnings = Vec::new();
@@ -505,6 +528,8 @@ pub fn write(
     }
     append_buffer_views(&mut editor, root, changes, &images, &layout)?;
     renumber_accessor_refs(&mut editor, &references, &numbering, changes)?;
+    // One entry per index in the document: gone before the primitives' edits add theirs.
+    drop(references);
     let first_new_material = append_materials(&mut editor, root, changes)?;
     edit_primitives(
         &mut editor,
@@ -553,20 +578,20 @@ pub fn write(
             describe_compression(&compressed_views, layout.packed.as_ref()),
         ));
     }
-    let json_text = editor.rendered().map_err(edit_error)?;
-    let bytes = emit(loaded, &json_text, &layout, format)?;
+    let json = editor.into_rendered().map_err(edit_error)?;
     let dropped = Dropped {
         accessors: (numbering.accessor_map.len() - numbering.kept_accessors) as u64,
         buffer_views: (numbering.view_map.len() - numbering.kept_views) as u64,
         kept_because,
     };
-    Ok(Written {
-        bytes,
+    let written = Written {
+        bytes: Vec::new(),
         embedded_image_bytes: images.external_bytes,
         dropped,
         notices: warnings,
         compressed_views,
-    })
+    };
+    Ok((json, layout, written))
 }
 
 /// Every index reference to an accessor or a buffer view in the input, found once: the first
@@ -578,10 +603,12 @@ struct References<'d> {
 
 impl<'d> References<'d> {
     fn of(root: &'d Node) -> Self {
-        References {
-            accessors: refs::accessor_refs(root),
-            views: refs::view_refs(root),
-        }
+        // Exactly sized: a scene of many small primitives has several per primitive.
+        let mut accessors = refs::accessor_refs(root);
+        let mut views = refs::view_refs(root);
+        accessors.shrink_to_fit();
+        views.shrink_to_fit();
+        References { accessors, views }
     }
 }
 
@@ -1468,7 +1495,8 @@ fn merged_buffer(
 /// The container: a GLB (keeping the input GLB's chunks after BIN), or the `.gltf` JSON. The
 /// edited JSON is written straight into it, never held as a text of its own besides.
 fn emit(
-    loaded: &Loaded<'_>,
+    container: Container,
+    other_chunks: &[glb::Chunk<'_>],
     json: &json::Rendered<'_>,
     layout: &Layout,
     format: OutputFormat,
@@ -1478,8 +1506,8 @@ fn emit(
             json.len(),
             |out| json.for_each_part(|part| out.extend_from_slice(part.as_bytes())),
             layout.bin_needed.then_some(layout.bin.as_slice()),
-            if loaded.container == Container::Glb {
-                &loaded.other_chunks
+            if container == Container::Glb {
+                other_chunks
             } else {
                 &[]
             },
