@@ -176,6 +176,12 @@ impl Text {
     }
 }
 
+impl From<&str> for Text {
+    fn from(s: &str) -> Text {
+        Text::new(s)
+    }
+}
+
 impl From<String> for Text {
     fn from(s: String) -> Text {
         if s.len() > INLINE {

@@ -33,7 +33,7 @@ use plan::{Action, GeometryKey, PlanOptions, PrimitivePlan, Topology};
 use quantize::Snorm;
 use rayon::prelude::*;
 use std::collections::HashMap;
-use tspace_json::Node;
+use tspace_json::{Node, Text};
 use tspace_tangent::{Cancel, Marks, Method, Options, UvOrigin};
 use write::{Changes, PrimitiveEdit, Ref};
 
@@ -255,8 +255,17 @@ fn plan_options(options: &SceneOptions, internal: &Internal) -> PlanOptions {
 struct Job {
     key: GeometryKey,
     method: Method,
-    /// The first primitive that needed it (`meshes[m].primitives[p]`), for messages.
-    path: String,
+    /// The first primitive that needed it, `[mesh, primitive]`, for messages.
+    first: [usize; 2],
+}
+
+impl Job {
+    /// Where the job's first primitive is, as messages name it. Made when needed rather than
+    /// kept: a scene may have a job per primitive.
+    fn path(&self) -> String {
+        let [mesh, primitive] = self.first;
+        format!("meshes[{mesh}].primitives[{primitive}]")
+    }
 }
 
 /// A scene's jobs, in the order primitives first need them, and the job each plan uses.
@@ -279,15 +288,17 @@ fn plan_jobs(plans: &[PrimitivePlan], method: Method) -> Jobs {
             Action::Audit => Method::MikkTSpace,
             _ => method,
         };
-        let path = format!("meshes[{}].primitives[{}]", plan.mesh, plan.primitive);
         let next = jobs.list.len();
         let job = *index.entry((key.clone(), method)).or_insert(next);
         if job == next {
             let key = key.clone();
-            jobs.list.push(Job { key, method, path });
+            let first = [plan.mesh, plan.primitive];
+            jobs.list.push(Job { key, method, first });
         }
         jobs.of_plan[p] = Some(job);
     }
+    // Kept to the end, beside one plan per primitive: no room to spare.
+    jobs.list.shrink_to_fit();
     jobs
 }
 
@@ -406,7 +417,7 @@ fn compute_jobs(
                 limits: &limits,
                 cancel: &options.cancel,
             };
-            compute::compute(root, &job.key, data, &run, &job.path)
+            compute::compute(root, &job.key, data, &run, &job.path())
         })
         .collect();
     results.into_iter().collect()
@@ -458,6 +469,10 @@ fn report_primitives(
     report: &mut Report,
 ) -> Result<Edits, SceneError> {
     let mut edits = Edits::default();
+    // Each job adds its accessors once: room for them all, rather than lists grown by doubling
+    // (capacity no job uses is never touched).
+    edits.job_refs.reserve_exact(jobs.list.len());
+    edits.changes.reserve(jobs.list.len());
     let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
     report.primitives.reserve_exact(plans.len());
     for (plan, &job) in plans.iter().zip(&jobs.of_plan) {
@@ -677,7 +692,7 @@ fn generate_primitive(
     let edit = edits.edit_primitive(scene, primitive, key.topology, job, c, snorm)?;
     entry.tangent = edits
         .job_refs
-        .get(&job)
+        .get(job)
         .and_then(|refs| refs.tangent)
         .map(|(_, quantized)| TangentReport::new(quantized));
     if !key.targets.is_empty() {
@@ -708,7 +723,7 @@ fn add_totals(report: &mut Report, computed: &[Computed], edits: &Edits) {
             d.duplicate_position_triangles.count + d.zero_area_triangles.count;
         summary.zero_uv_area_triangles += d.zero_uv_area_triangles.count;
         summary.mirrored_uv_triangles += d.mirrored_uv_triangles.count;
-        if edits.job_refs.contains_key(&j) {
+        if edits.job_refs.get(j).is_some_and(|refs| refs.written) {
             summary.vertices_added += d.vertices_added;
         }
     }
@@ -922,15 +937,29 @@ struct JobRefs {
     color: Option<Ref>,
     normal: Option<Ref>,
     indices: Option<Ref>,
-    deltas: HashMap<usize, Ref>,
+    /// Per morph target that has them: its TANGENT deltas.
+    deltas: Vec<(usize, Ref)>,
+    /// Whether the job's accessors were written (an audit's are not).
+    written: bool,
+}
+
+/// Job `job`'s accessors, now counted as written. The list is reserved for every job up front
+/// and grows to `job` here, so that it never doubles.
+fn written_refs(list: &mut Vec<JobRefs>, job: usize) -> &mut JobRefs {
+    if list.len() <= job {
+        list.resize_with(job + 1, JobRefs::default);
+    }
+    let refs = &mut list[job];
+    refs.written = true;
+    refs
 }
 
 /// What the primitives' edits add to the scene, for the writer.
 #[derive(Default)]
 struct Edits {
     changes: Changes,
-    /// Per job that was written: its accessors.
-    job_refs: HashMap<usize, JobRefs>,
+    /// Per job (up to the last that was written): its accessors.
+    job_refs: Vec<JobRefs>,
     /// Per (job, input accessor): that accessor copied in the order of the job's split
     /// vertices, so primitives sharing a job also share the copies.
     remapped: HashMap<(usize, usize), Ref>,
@@ -954,7 +983,7 @@ impl Edits {
         // Decoded accessors have no data in the file: the primitive's are all written anew.
         let keeps = c.keeps_vertices(topology) && !reads_decoded(primitive, scene.data.decoded);
         let painting = scene.painted.get(job).is_some();
-        let refs = self.job_refs.entry(job).or_default();
+        let refs = written_refs(&mut self.job_refs, job);
         let changes = &mut self.changes;
         let (tangent, _) = *refs
             .tangent
@@ -986,6 +1015,8 @@ impl Edits {
             )?);
         }
         self.paint(scene, job, &mut edit);
+        // Kept until the scene is written, one per primitive: no room to spare.
+        edit.attributes.shrink_to_fit();
         Ok(edit)
     }
 
@@ -1037,7 +1068,7 @@ impl Edits {
         topology: Topology,
     ) {
         let split = &c.tangents.split;
-        let refs = self.job_refs.entry(job).or_default();
+        let refs = written_refs(&mut self.job_refs, job);
         let changes = &mut self.changes;
         if let Some(normals) = &c.tangents.normals {
             let r = *refs
@@ -1059,7 +1090,7 @@ impl Edits {
         let Some(painted) = scene.painted.get(job) else {
             return;
         };
-        let refs = self.job_refs.entry(job).or_default();
+        let refs = written_refs(&mut self.job_refs, job);
         let changes = &mut self.changes;
         let r = *refs
             .color
@@ -1078,7 +1109,7 @@ impl Edits {
         (t, target): (usize, &Node),
         keeps: bool,
         snorm: Option<Snorm>,
-    ) -> Result<Vec<(String, Ref)>, SceneError> {
+    ) -> Result<Vec<(Text, Ref)>, SceneError> {
         let delta = c.target_deltas.get(t).and_then(Option::as_ref);
         let mut set = Vec::new();
         if !keeps {
@@ -1089,11 +1120,15 @@ impl Edits {
         }
         if let Some(deltas) = delta {
             let changes = &mut self.changes;
-            let refs = self.job_refs.entry(job).or_default();
-            let r = *refs
-                .deltas
-                .entry(t)
-                .or_insert_with(|| add_deltas(changes, deltas, snorm));
+            let refs = written_refs(&mut self.job_refs, job);
+            let r = match refs.deltas.iter().find(|(target, _)| *target == t) {
+                Some(&(_, r)) => r,
+                None => {
+                    let r = add_deltas(changes, deltas, snorm);
+                    refs.deltas.push((t, r));
+                    r
+                }
+            };
             set.push(("TANGENT".into(), r));
         }
         Ok(set)
@@ -1108,7 +1143,7 @@ impl Edits {
         c: &Computed,
         object: Option<&Node>,
         skip: impl Fn(&str) -> bool,
-    ) -> Result<Vec<(String, Ref)>, SceneError> {
+    ) -> Result<Vec<(Text, Ref)>, SceneError> {
         let mut members = Vec::new();
         for member in object.and_then(Node::as_object).unwrap_or(&[]) {
             if skip(&member.key) {
@@ -1132,7 +1167,7 @@ impl Edits {
                     r
                 }
             };
-            members.push((member.key.to_string(), r));
+            members.push((member.key.clone(), r));
         }
         Ok(members)
     }

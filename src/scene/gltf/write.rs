@@ -31,8 +31,8 @@ use crate::scene::report::{Dropped, Notice};
 use crate::scene::uri;
 use compress::{Encoded, Output, Prefiltered, Shape};
 use rayon::prelude::*;
-use std::collections::{BTreeMap, HashMap};
-use tspace_json::{self as json, Document, Editor, Node};
+use std::collections::HashMap;
+use tspace_json::{self as json, Document, Editor, Node, Text};
 
 /// An accessor in the output: one of the input's, or one this write adds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -66,16 +66,60 @@ struct NewAccessor {
 /// The changes to one primitive: members to set (attribute name → accessor), and so on.
 #[derive(Default)]
 pub struct PrimitiveEdit {
-    pub attributes: Vec<(String, Ref)>,
+    pub attributes: Vec<(Text, Ref)>,
     pub indices: Option<Ref>,
     /// Set `mode` to TRIANGLES (a strip or fan was unrolled).
     pub to_triangle_list: bool,
     /// Per morph target: members to set.
-    pub targets: Vec<Vec<(String, Ref)>>,
+    pub targets: Vec<Vec<(Text, Ref)>>,
     /// Remove `KHR_draco_mesh_compression`: its compressed data no longer matches.
     pub remove_draco: bool,
     /// Point `material` at this one of [`Changes::materials`].
     pub material: Option<usize>,
+}
+
+/// The edited primitives' edits by `(mesh, primitive)`, in that order: a list, since edits come
+/// in that order, without a map's room per entry (a scene may edit a hundred thousand).
+#[derive(Default)]
+pub struct PrimitiveEdits(Vec<((usize, usize), PrimitiveEdit)>);
+
+impl PrimitiveEdits {
+    fn position(&self, key: &(usize, usize)) -> Result<usize, usize> {
+        self.0.binary_search_by(|(k, _)| k.cmp(key))
+    }
+
+    pub fn get(&self, key: &(usize, usize)) -> Option<&PrimitiveEdit> {
+        let i = self.position(key).ok()?;
+        self.0.get(i).map(|(_, edit)| edit)
+    }
+
+    pub fn contains_key(&self, key: &(usize, usize)) -> bool {
+        self.position(key).is_ok()
+    }
+
+    /// Sets the edit of `key`, replacing any it had.
+    pub fn insert(&mut self, key: (usize, usize), edit: PrimitiveEdit) {
+        match self.position(&key) {
+            Ok(i) => {
+                if let Some(slot) = self.0.get_mut(i) {
+                    slot.1 = edit;
+                }
+            }
+            Err(i) => self.0.insert(i, (key, edit)),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    pub fn values(&self) -> impl Iterator<Item = &PrimitiveEdit> {
+        self.0.iter().map(|(_, edit)| edit)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (&(usize, usize), &PrimitiveEdit)> {
+        self.0.iter().map(|(key, edit)| (key, edit))
+    }
 }
 
 /// New accessors and views, and the changes to primitives, collected before anything is
@@ -84,7 +128,7 @@ pub struct PrimitiveEdit {
 pub struct Changes {
     views: Vec<NewView>,
     accessors: Vec<NewAccessor>,
-    pub primitives: BTreeMap<(usize, usize), PrimitiveEdit>,
+    pub primitives: PrimitiveEdits,
     /// Materials to append, as JSON text, in order.
     pub materials: Vec<String>,
     /// Extensions the added materials use: listed in `extensionsUsed` (not required: a viewer
@@ -93,6 +137,13 @@ pub struct Changes {
 }
 
 impl Changes {
+    /// Room for `views` more new views and accessors (one a job, for its tangents), so that
+    /// the lists are not grown by doubling.
+    pub fn reserve(&mut self, views: usize) {
+        self.views.reserve_exact(views);
+        self.accessors.reserve_exact(views);
+    }
+
     fn push_view(
         &mut self,
         data: Vec<u8>,
@@ -1528,7 +1579,7 @@ fn final_primitive_members(
 ) -> HashMap<(usize, usize), Vec<(String, Ref)>> {
     let mut out = HashMap::new();
     let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
-    for (&(m, p), edit) in &changes.primitives {
+    for (&(m, p), edit) in changes.primitives.iter() {
         let Some(primitive) = meshes
             .get(m)
             .and_then(|mesh| mesh.get("primitives"))
@@ -1538,7 +1589,7 @@ fn final_primitive_members(
         };
         let mut members = Vec::new();
         let merged = |original: Option<&Node>,
-                      set: &[(String, Ref)],
+                      set: &[(Text, Ref)],
                       prefix: &str,
                       members: &mut Vec<(String, Ref)>| {
             for member in original.and_then(Node::as_object).unwrap_or(&[]) {
@@ -1592,7 +1643,7 @@ fn apply_primitive_edit(
     let final_accessor = |r: Ref| numbering.accessor(r);
     let set_all = |editor: &mut Editor<'_, '_>,
                    object: &Node,
-                   set: &[(String, Ref)]|
+                   set: &[(Text, Ref)]|
      -> Result<(), SceneError> {
         for (key, r) in set {
             editor
