@@ -1141,27 +1141,66 @@ pub struct Editor<'d, 'a> {
     arrays: BTreeMap<usize, ArrayEdit>,
 }
 
+/// One object's edits. The members' keys are not copied: every edit names the object's node,
+/// whose members have them.
 #[derive(Debug)]
 struct ObjectEdit {
     open: usize,
-    /// Per original member: key span, value span, key, removed.
-    members: Vec<(Range<usize>, Range<usize>, Text, bool)>,
-    added: Vec<(String, NewValue)>,
+    /// Per original member: where its key starts and its value ends (what a removal cuts).
+    members: Box<[(u32, u32)]>,
+    /// The last original member's key end and value start: its colon, which added members copy.
+    last_colon: (u32, u32),
+    /// Per original member, whether it is removed; empty while none is.
+    removed: Vec<bool>,
+    added: Vec<(Text, NewValue)>,
 }
 
 #[derive(Debug)]
 enum NewValue {
-    Text(String),
-    /// An array member created by [`Editor::push_to_array_member`]; grows with each push.
-    Array(Vec<String>),
+    Text(Text),
+    /// An array member created by [`Editor::push_to_array_member`]; grows with each push. Its
+    /// elements' texts, separated by commas.
+    Array {
+        items: String,
+        count: usize,
+    },
 }
 
+/// One array's edits.
 #[derive(Debug)]
 struct ArrayEdit {
     open: usize,
-    elements: Vec<Range<usize>>,
+    /// Per original element: its span.
+    elements: Box<[(u32, u32)]>,
+    /// Per original element, whether it is removed; empty while none is.
     removed: Vec<bool>,
-    added: Vec<String>,
+    /// The added elements' texts, each after the comma and whitespace that separate it from
+    /// the one before: one text for all, which rendering takes as it is.
+    added: String,
+    /// How many elements were added.
+    added_count: usize,
+    /// The first added element's separator's length, left out when no original element is
+    /// kept.
+    first_separator: usize,
+}
+
+/// Whether item `i` is removed, in a list that is empty while none is.
+fn is_removed(removed: &[bool], i: usize) -> bool {
+    removed.get(i).copied().unwrap_or(false)
+}
+
+/// Marks item `i` of `n` removed; false when there is no such item.
+fn mark_removed(removed: &mut Vec<bool>, n: usize, i: usize) -> bool {
+    if i >= n {
+        return false;
+    }
+    if removed.is_empty() {
+        *removed = vec![false; n];
+    }
+    if let Some(r) = removed.get_mut(i) {
+        *r = true;
+    }
+    true
 }
 
 impl<'d, 'a> Editor<'d, 'a> {
@@ -1193,10 +1232,10 @@ impl<'d, 'a> Editor<'d, 'a> {
     ) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
-        if edit.has_key(key) {
+        if edit.has_key(object, key) {
             return Err(EditError::MemberExists { key: key.into() });
         }
-        edit.added.push((key.into(), NewValue::Text(text)));
+        edit.add(key, NewValue::Text(text.into()));
         Ok(())
     }
 
@@ -1210,17 +1249,17 @@ impl<'d, 'a> Editor<'d, 'a> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
         if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
-            *value = NewValue::Text(text);
+            *value = NewValue::Text(text.into());
             return Ok(());
         }
         let existing = object
             .as_object()
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
         match existing {
-            Some((i, member)) if !edit.members.get(i).is_some_and(|m| m.3) => {
+            Some((i, member)) if !is_removed(&edit.removed, i) => {
                 self.replacements.push((member.value.span(), text));
             }
-            _ => edit.added.push((key.into(), NewValue::Text(text))),
+            _ => edit.add(key, NewValue::Text(text.into())),
         }
         Ok(())
     }
@@ -1232,13 +1271,11 @@ impl<'d, 'a> Editor<'d, 'a> {
             edit.added.remove(i);
             return Ok(true);
         }
-        match edit.members.iter_mut().find(|m| m.2 == key && !m.3) {
-            Some(member) => {
-                member.3 = true;
-                Ok(true)
-            }
-            None => Ok(false),
-        }
+        let members = object.as_object().unwrap_or(&[]);
+        let found = (0..members.len()).find(|&i| {
+            members.get(i).is_some_and(|m| m.key == key) && !is_removed(&edit.removed, i)
+        });
+        Ok(found.is_some_and(|i| mark_removed(&mut edit.removed, members.len(), i)))
     }
 
     /// Appends an element to `array` and returns its index in the edited array.
@@ -1251,9 +1288,10 @@ impl<'d, 'a> Editor<'d, 'a> {
         let Some(elements) = array.as_array() else {
             return Err(EditError::NotAnArray { span: array.span() });
         };
+        let source = self.doc.source;
         let edit = self.array_edit(array, elements)?;
-        edit.added.push(text);
-        Ok(edit.elements.len() + edit.added.len() - 1)
+        edit.add(source, &text)?;
+        Ok(edit.elements.len() + edit.added_count - 1)
     }
 
     /// Removes element `index` (with its comma) from `array`. Returns whether there was such an
@@ -1264,13 +1302,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             return Err(EditError::NotAnArray { span: array.span() });
         };
         let edit = self.array_edit(array, elements)?;
-        match edit.removed.get_mut(index) {
-            Some(removed) => {
-                *removed = true;
-                Ok(true)
-            }
-            None => Ok(false),
-        }
+        Ok(mark_removed(&mut edit.removed, edit.elements.len(), index))
     }
 
     fn array_edit(&mut self, array: &Node, elements: &[Node]) -> Result<&mut ArrayEdit, EditError> {
@@ -1280,9 +1312,11 @@ impl<'d, 'a> Editor<'d, 'a> {
             .entry(array.span().start)
             .or_insert_with(|| ArrayEdit {
                 open: array.span().start,
-                elements: elements.iter().map(|e| e.span()).collect(),
-                removed: vec![false; elements.len()],
-                added: Vec::new(),
+                elements: elements.iter().map(|e| (e.start, e.end)).collect(),
+                removed: Vec::new(),
+                added: String::new(),
+                added_count: 0,
+                first_separator: 0,
             }))
     }
 
@@ -1299,9 +1333,11 @@ impl<'d, 'a> Editor<'d, 'a> {
         let edit = self.object_edit(object)?;
         if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
             return match value {
-                NewValue::Array(items) => {
-                    items.push(text);
-                    Ok(items.len() - 1)
+                NewValue::Array { items, count } => {
+                    items.push(',');
+                    items.push_str(&text);
+                    *count += 1;
+                    Ok(*count - 1)
                 }
                 NewValue::Text(_) => Err(EditError::MemberExists { key: key.into() }),
             };
@@ -1310,11 +1346,15 @@ impl<'d, 'a> Editor<'d, 'a> {
             .as_object()
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
         match existing {
-            Some((i, member)) if !edit.members.get(i).is_some_and(|m| m.3) => {
+            Some((i, member)) if !is_removed(&edit.removed, i) => {
                 self.append_element(&member.value, text)
             }
             _ => {
-                edit.added.push((key.into(), NewValue::Array(vec![text])));
+                let items = NewValue::Array {
+                    items: text,
+                    count: 1,
+                };
+                edit.add(key, items);
                 Ok(0)
             }
         }
@@ -1341,15 +1381,20 @@ impl<'d, 'a> Editor<'d, 'a> {
         let open = object.span().start;
         if !self.objects.contains_key(&open) {
             let mut spans = Vec::with_capacity(members.len());
+            let mut last_colon = (0, 0);
             for m in members {
                 let key = self.doc.key_span(m).ok_or(EditError::ForeignNode {
                     span: m.value.span(),
                 })?;
-                spans.push((key, m.value.span(), m.key.clone(), false));
+                // Offsets within the document, which `parse` kept to 32 bits.
+                spans.push((key.start as u32, m.value.end));
+                last_colon = (key.end as u32, m.value.start);
             }
             let edit = ObjectEdit {
                 open,
-                members: spans,
+                members: spans.into_boxed_slice(),
+                last_colon,
+                removed: Vec::new(),
                 added: Vec::new(),
             };
             self.objects.insert(open, edit);
@@ -1361,12 +1406,19 @@ impl<'d, 'a> Editor<'d, 'a> {
 
     /// The edited document. Fails only on overlapping edits or nodes from another document.
     pub fn render(&self) -> Result<String, EditError> {
-        let replacements = self
+        let source = self.doc.source;
+        let mut pieces: Vec<(Range<usize>, Cow<'_, str>)> = self
             .replacements
             .iter()
             .map(|(range, text)| (range.clone(), Cow::Borrowed(text.as_str())))
             .collect();
-        let rendered = self.pieces(replacements)?;
+        for edit in self.arrays.values() {
+            if let Some((at, skip)) = edit.pieces(source, &mut pieces)? {
+                let text = edit.added.get(skip..).unwrap_or("");
+                pieces.push((at..at, Cow::Borrowed(text)));
+            }
+        }
+        let rendered = self.pieces(pieces)?;
         let mut out = String::with_capacity(rendered.len());
         rendered.for_each_part(|part| out.push_str(part));
         Ok(out)
@@ -1374,18 +1426,27 @@ impl<'d, 'a> Editor<'d, 'a> {
 
     /// The edited document as the pieces it is made of, checked like [`Editor::render`]'s,
     /// for a caller that copies it once into a larger output (a GLB's JSON chunk) rather than
-    /// hold a text of it besides. It borrows the source text alone: the editor's bookkeeping
-    /// and the document's tree can go before the output is made.
+    /// hold a text of it besides. It borrows the source text alone, and takes the editor's
+    /// texts rather than copy them: the editor's bookkeeping and the document's tree can go
+    /// before the output is made.
     pub fn into_rendered(mut self) -> Result<Rendered<'a>, EditError> {
-        let replacements = std::mem::take(&mut self.replacements)
+        let source = self.doc.source;
+        let mut pieces: Vec<(Range<usize>, Cow<'a, str>)> = std::mem::take(&mut self.replacements)
             .into_iter()
             .map(|(range, text)| (range, Cow::Owned(text)))
             .collect();
-        self.pieces(replacements)
+        for (_, mut edit) in std::mem::take(&mut self.arrays) {
+            if let Some((at, skip)) = edit.pieces(source, &mut pieces)? {
+                let mut text = std::mem::take(&mut edit.added);
+                text.drain(..skip.min(text.len()));
+                pieces.push((at..at, Cow::Owned(text)));
+            }
+        }
+        self.pieces(pieces)
     }
 
-    /// Every edit as a piece of text replacing a range of the source, in order, checked: the
-    /// replacements, then the arrays' and objects' edits (the order that settles ties).
+    /// The replacements' and arrays' pieces (in that order) with the objects' added, sorted
+    /// and checked: the order in which they were added settles ties.
     fn pieces<'p>(
         &self,
         mut pieces: Vec<(Range<usize>, Cow<'p, str>)>,
@@ -1394,9 +1455,6 @@ impl<'d, 'a> Editor<'d, 'a> {
         'a: 'p,
     {
         let source = self.doc.source;
-        for edit in self.arrays.values() {
-            edit.pieces(source, &mut pieces)?;
-        }
         for edit in self.objects.values() {
             edit.pieces(source, &mut pieces)?;
         }
@@ -1536,8 +1594,21 @@ fn removal_pieces(
 }
 
 impl ObjectEdit {
-    fn has_key(&self, key: &str) -> bool {
-        self.members.iter().any(|m| m.2 == key && !m.3) || self.added.iter().any(|(k, _)| k == key)
+    /// Whether the edited object has member `key`: an original one not removed (`object` is
+    /// the edited node), or an added one.
+    fn has_key(&self, object: &Node, key: &str) -> bool {
+        let members = object.as_object().unwrap_or(&[]);
+        let original = members
+            .iter()
+            .enumerate()
+            .any(|(i, m)| m.key == key && !is_removed(&self.removed, i));
+        original || self.added.iter().any(|(k, _)| k == key)
+    }
+
+    /// Adds a member; the list is kept to its length (most edited objects gain one member).
+    fn add(&mut self, key: &str, value: NewValue) {
+        self.added.reserve_exact(1);
+        self.added.push((Text::new(key), value));
     }
 
     fn pieces(
@@ -1546,9 +1617,9 @@ impl ObjectEdit {
         out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
     ) -> Result<(), EditError> {
         let n = self.members.len();
-        let start = |i: usize| self.members.get(i).map_or(0, |m| m.0.start);
-        let end = |i: usize| self.members.get(i).map_or(0, |m| m.1.end);
-        let removed = |i: usize| self.members.get(i).is_some_and(|m| m.3);
+        let start = |i: usize| self.members.get(i).map_or(0, |m| m.0 as usize);
+        let end = |i: usize| self.members.get(i).map_or(0, |m| m.1 as usize);
+        let removed = |i: usize| is_removed(&self.removed, i);
 
         removal_pieces(n, removed, start, end, source, out)?;
 
@@ -1557,18 +1628,19 @@ impl ObjectEdit {
         }
         // New members copy the layout of the last existing ones: the whitespace before a key,
         // and the spelling of the colon.
-        let (at, lead, colon) = match self.members.as_slice() {
-            [] => (self.open + 1, "", ":"),
-            [.., (key, value, _, _)] => {
+        let (key_end, value_start) = (self.last_colon.0 as usize, self.last_colon.1 as usize);
+        let (at, lead, colon) = match n {
+            0 => (self.open + 1, "", ":"),
+            _ => {
                 let lead = if n >= 2 {
-                    lead_after_comma(slice(source, end(n - 2)..key.start)?)
+                    lead_after_comma(slice(source, end(n - 2)..start(n - 1))?)
                 } else {
-                    slice(source, self.open + 1..key.start)?
+                    slice(source, self.open + 1..start(n - 1))?
                 };
-                (value.end, lead, slice(source, key.end..value.start)?)
+                (end(n - 1), lead, slice(source, key_end..value_start)?)
             }
         };
-        let mut comma = self.members.iter().any(|m| !m.3);
+        let mut comma = (0..n).any(|i| !removed(i));
         let mut text = String::new();
         for (key, value) in &self.added {
             if comma {
@@ -1580,9 +1652,9 @@ impl ObjectEdit {
             text.push_str(colon);
             match value {
                 NewValue::Text(t) => text.push_str(t),
-                NewValue::Array(items) => {
+                NewValue::Array { items, .. } => {
                     text.push('[');
-                    text.push_str(&items.join(","));
+                    text.push_str(items);
                     text.push(']');
                 }
             }
@@ -1593,38 +1665,48 @@ impl ObjectEdit {
 }
 
 impl ArrayEdit {
+    /// Appends an element's text, after the separator the array's own elements have: the
+    /// whitespace after the comma between the last two, or before the only one.
+    fn add(&mut self, source: &str, text: &str) -> Result<(), EditError> {
+        let lead = match *self.elements {
+            [] => "",
+            [(start, _)] => slice(source, self.open + 1..start as usize)?,
+            [.., (_, before_end), (last_start, _)] => {
+                lead_after_comma(slice(source, before_end as usize..last_start as usize)?)
+            }
+        };
+        if self.added_count == 0 {
+            self.first_separator = 1 + lead.len();
+        }
+        self.added.push(',');
+        self.added.push_str(lead);
+        self.added.push_str(text);
+        self.added_count += 1;
+        Ok(())
+    }
+
+    /// The removals' pieces, and where the added elements go with how much of their text to
+    /// leave out (the first separator, when no original element is kept).
     fn pieces(
         &self,
         source: &str,
         out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
-    ) -> Result<(), EditError> {
+    ) -> Result<Option<(usize, usize)>, EditError> {
         let n = self.elements.len();
-        let removed = |i: usize| self.removed.get(i).copied().unwrap_or(false);
-        let start = |i: usize| self.elements.get(i).map_or(0, |e| e.start);
-        let end = |i: usize| self.elements.get(i).map_or(0, |e| e.end);
+        let removed = |i: usize| is_removed(&self.removed, i);
+        let start = |i: usize| self.elements.get(i).map_or(0, |e| e.0 as usize);
+        let end = |i: usize| self.elements.get(i).map_or(0, |e| e.1 as usize);
         removal_pieces(n, removed, start, end, source, out)?;
-        if self.added.is_empty() {
-            return Ok(());
+        if self.added_count == 0 {
+            return Ok(None);
         }
-        let kept = (0..n).filter(|&i| !removed(i)).count();
-        let (at, lead) = match self.elements.as_slice() {
-            [] => (self.open + 1, ""),
-            [only] => (only.end, slice(source, self.open + 1..only.start)?),
-            [.., before, last] => (
-                last.end,
-                lead_after_comma(slice(source, before.end..last.start)?),
-            ),
+        let at = match n {
+            0 => self.open + 1,
+            _ => end(n - 1),
         };
-        let mut text = String::new();
-        for (i, item) in self.added.iter().enumerate() {
-            if kept > 0 || i > 0 {
-                text.push(',');
-                text.push_str(lead);
-            }
-            text.push_str(item);
-        }
-        out.push((at..at, Cow::Owned(text)));
-        Ok(())
+        let kept = (0..n).any(|i| !removed(i));
+        let skip = if kept { 0 } else { self.first_separator };
+        Ok(Some((at, skip)))
     }
 }
 
@@ -1651,6 +1733,12 @@ mod tests {
         let out = ed.render().unwrap();
         // Every edit must leave valid JSON behind.
         parse(&out).unwrap_or_else(|e| panic!("{out:?}: {e}"));
+        // The pieces a GLB is written from say the same.
+        let rendered = ed.into_rendered().unwrap();
+        let mut joined = String::new();
+        rendered.for_each_part(|part| joined.push_str(part));
+        assert_eq!(joined, out);
+        assert_eq!(rendered.len(), out.len());
         out
     }
 
@@ -2100,6 +2188,15 @@ mod tests {
             assert!(ed.remove_member(doc.root(), "b").unwrap());
         });
         assert_eq!(out, "{\"a\":1}");
+        // Every element removed, before and after appending: the first added one takes no
+        // comma, the next the array's own separator.
+        let out = edited("[ 1,\n  2 ]", |doc, ed| {
+            ed.append_element(doc.root(), "3").unwrap();
+            ed.remove_element(doc.root(), 0).unwrap();
+            ed.remove_element(doc.root(), 1).unwrap();
+            ed.append_element(doc.root(), "4").unwrap();
+        });
+        assert_eq!(out, "[ 3,\n  4 ]");
     }
 
     #[test]
