@@ -155,7 +155,6 @@ fn process_and_write<'a>(
         report_painting(&mut report, root, &painted, &mut edits);
     }
     SceneError::check(cancel)?;
-    let sizes_in = sizes::measure(root);
     // The writer reads the input and the edits alone: what the computations left goes before
     // it allocates the output (in a scene of many small primitives, as much as the output).
     let Edits {
@@ -164,6 +163,7 @@ fn process_and_write<'a>(
         remapped,
     } = edits;
     drop((plans, jobs, decoded, computed, painted, job_refs, remapped));
+    let sizes_in = sizes::measure(root);
     let bytes = write_scene(bytes, loaded, changes, options, resources, &mut report)?;
     let processed = Processed {
         bytes,
@@ -472,7 +472,7 @@ fn report_primitives(
     // Each job adds its accessors once: room for them all, rather than lists grown by doubling
     // (capacity no job uses is never touched).
     edits.job_refs.reserve_exact(jobs.list.len());
-    edits.changes.reserve(jobs.list.len());
+    edits.changes.reserve(jobs.list.len(), plans.len());
     let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
     report.primitives.reserve_exact(plans.len());
     for (plan, &job) in plans.iter().zip(&jobs.of_plan) {

@@ -137,11 +137,13 @@ pub struct Changes {
 }
 
 impl Changes {
-    /// Room for `views` more new views and accessors (one a job, for its tangents), so that
-    /// the lists are not grown by doubling.
-    pub fn reserve(&mut self, views: usize) {
+    /// Room for `views` more new views and accessors (one a job, for its tangents) and
+    /// `primitives` more edits, so that the lists are not grown by doubling (room no edit uses
+    /// is never touched).
+    pub fn reserve(&mut self, views: usize, primitives: usize) {
         self.views.reserve_exact(views);
         self.accessors.reserve_exact(views);
+        self.primitives.0.reserve_exact(primitives);
     }
 
     fn push_view(
