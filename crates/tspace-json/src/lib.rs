@@ -77,8 +77,9 @@ const BOM: &[u8] = b"\xEF\xBB\xBF";
 /// A JSON value and where it sits in the source text.
 ///
 /// Small, because a glTF document of many small objects is mostly nodes: 32 bytes, with
-/// every short key, string and number held inside (see [`Text`]), so that a node and a member
-/// cost about four times their JSON text, not twelve.
+/// every short key, string and number held inside (see [`Text`]). The tree of a glTF of many
+/// one-triangle primitives takes 3.6 times its JSON text; with a heap allocation per key and
+/// number, and 48-byte nodes, it took over 7, and its allocations' overhead more.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Node {
     /// Byte range of the value's text in the source, from its first to its last byte.
@@ -1778,8 +1779,8 @@ mod tests {
             "componentType",
             "exactly14bytes",
             "fifteen bytes!!",
+            "é2345678901é",
             "é23456789012é",
-            "é234567890123é",
         ] {
             let t = Text::new(text);
             assert_eq!(t.as_str(), text);
