@@ -1,7 +1,7 @@
 //! `tspace process` and `tspace analyze`: read files, call the scene layer, write outputs and
 //! reports, and turn every outcome into lines on stderr and an exit code.
 
-use super::outcome::{Failure, FailureCode, Outcome, failure_line, guarded, report_text};
+use super::outcome::{Failure, FailureCode, Outcome, failure_line, guarded, write_report_json};
 use super::paths::{self, Destination, Found, Input, io_message};
 use super::progress::Progress;
 use super::stdio::{self, is_dash, output_name};
@@ -14,7 +14,6 @@ use crate::scene::options::Debug;
 use crate::scene::report::Report;
 use crate::scene::{OutputFormat, Processed, SceneOptions};
 use rayon::prelude::*;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The largest file read: a main file, or a buffer, image or MTL file it names.
@@ -389,16 +388,11 @@ fn print_outcomes(outcomes: &[Outcome], verbose: bool) {
 /// Writes the `--report` document, to standard output for `-`. Failing to is [`Exit::Write`]
 /// but undoes nothing: the outputs are written already.
 fn write_report(path: &Path, outcomes: &[Outcome], single: bool) -> Exit {
-    let written = report_text(outcomes, single)
-        .map_err(std::io::Error::other)
-        .and_then(|text| {
-            let text = format!("{text}\n");
-            if is_dash(path) {
-                stdio::write_stdout(text.as_bytes())
-            } else {
-                write_atomically(path, |file| file.write_all(text.as_bytes()))
-            }
-        });
+    let written = if is_dash(path) {
+        write_report_json(outcomes, single, std::io::stdout().lock())
+    } else {
+        write_atomically(path, |file| write_report_json(outcomes, single, file))
+    };
     match written {
         Ok(()) => Exit::Ok,
         Err(e) => {
@@ -459,18 +453,14 @@ pub(crate) fn process(mut args: ProcessArgs) -> Exit {
 /// `analyze`'s stdout: one named file's report alone, as before several inputs were taken (so
 /// scripts reading it keep working), nothing when that file failed (its line is on stderr);
 /// else the array `process --report` writes.
-fn analysis_text(outcomes: &[Outcome], single: bool) -> Option<serde_json::Result<String>> {
-    match outcomes {
-        [one] if single => one.result.as_ref().ok().map(|r| Ok(r.to_json_pretty())),
-        _ => Some(report_text(outcomes, false)),
+fn print_analysis(outcomes: &[Outcome], single: bool) -> Exit {
+    if let [one] = outcomes
+        && single
+        && one.result.is_err()
+    {
+        return Exit::Ok;
     }
-}
-
-fn print_analysis(text: serde_json::Result<String>) -> Exit {
-    let written = text
-        .map_err(std::io::Error::other)
-        .and_then(|text| stdio::write_stdout(format!("{text}\n").as_bytes()));
-    match written {
+    match write_report_json(outcomes, single, std::io::stdout().lock()) {
         Ok(()) => Exit::Ok,
         Err(e) => {
             eprintln!(
@@ -496,8 +486,6 @@ pub(crate) fn analyze(args: AnalyzeArgs) -> Exit {
     let tally = Tally::of(&outcomes);
     let single = args.inputs.len() == 1 && !names_directory(&args.inputs);
     let mut exit = tally.exit;
-    if let Some(text) = analysis_text(&outcomes, single) {
-        exit = exit.worst(print_analysis(text));
-    }
+    exit = exit.worst(print_analysis(&outcomes, single));
     exit.worst(apply_fail_on(&tally, &args.run))
 }

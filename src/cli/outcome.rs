@@ -6,6 +6,7 @@ use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::report::Report;
 use serde::Serialize;
 use std::fmt;
+use std::io::Write;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
@@ -171,16 +172,28 @@ impl<'a> EntryJson<'a> {
     }
 }
 
-/// The `--report` document: the report itself for one named input file that succeeded, that
-/// file's entry when it failed, else an array of entries.
-pub(crate) fn report_text(outcomes: &[Outcome], single: bool) -> serde_json::Result<String> {
+/// Writes the `--report` document and a newline to `out`: the report itself for one named input
+/// file that succeeded, that file's entry when it failed, else an array of entries. Serialized
+/// as it is written: a scene of many primitives has a report twice its own size as text, which
+/// is never held whole.
+pub(crate) fn write_report_json(
+    outcomes: &[Outcome],
+    single: bool,
+    out: impl std::io::Write,
+) -> std::io::Result<()> {
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
     match outcomes {
         [one] if single => match &one.result {
-            Ok(report) => serde_json::to_string_pretty(report),
-            Err(_) => serde_json::to_string_pretty(&EntryJson::of(one)),
+            Ok(report) => serde_json::to_writer_pretty(&mut out, report),
+            Err(_) => serde_json::to_writer_pretty(&mut out, &EntryJson::of(one)),
         },
-        _ => serde_json::to_string_pretty(&outcomes.iter().map(EntryJson::of).collect::<Vec<_>>()),
-    }
+        _ => serde_json::to_writer_pretty(
+            &mut out,
+            &outcomes.iter().map(EntryJson::of).collect::<Vec<_>>(),
+        ),
+    }?;
+    out.write_all(b"\n")?;
+    out.flush()
 }
 
 #[cfg(test)]

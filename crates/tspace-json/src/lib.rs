@@ -50,7 +50,7 @@
 //! let out = editor.render()?;
 //!
 //! // Only the generator's value was rewritten.
-//! let old = asset.get("generator").unwrap().span.clone();
+//! let old = asset.get("generator").unwrap().span();
 //! let new = "\"tspace\"";
 //! let source = doc.source();
 //! assert_eq!(&out[..old.start], &source[..old.start]);
@@ -63,6 +63,7 @@
 
 #![warn(missing_docs)]
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::ops::Range;
@@ -74,10 +75,17 @@ pub const MAX_DEPTH: usize = 128;
 const BOM: &[u8] = b"\xEF\xBB\xBF";
 
 /// A JSON value and where it sits in the source text.
+///
+/// Small, because a glTF document of many small objects is mostly nodes: 32 bytes, with
+/// every short key, string and number held inside (see [`Text`]). The tree of a glTF of many
+/// one-triangle primitives takes 3.6 times its JSON text; with a heap allocation per key and
+/// number, and 48-byte nodes, it took over 7, and its allocations' overhead more.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Node {
     /// Byte range of the value's text in the source, from its first to its last byte.
-    pub span: Range<usize>,
+    /// Offsets are 32-bit: [`Document::parse`] refuses longer texts.
+    start: u32,
+    end: u32,
     /// What the value is; arrays and objects hold their children here.
     pub kind: Kind,
 }
@@ -92,27 +100,155 @@ pub enum Kind {
     /// A number, kept as spelled in the source.
     Number(Number),
     /// The decoded string (escapes resolved).
-    String(String),
+    String(Text),
     /// Elements in source order.
-    Array(Vec<Node>),
+    Array(Box<[Node]>),
     /// Members in source order. Keys are unique (the parser rejects duplicates).
-    Object(Vec<Member>),
+    Object(Box<[Member]>),
 }
 
-/// One `"key": value` pair of an object.
+/// One `"key": value` pair of an object. The key's own span is found from the value's when an
+/// edit needs it ([`Document::key_span`]), rather than kept in every member.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Member {
     /// The decoded key.
-    pub key: String,
-    /// Byte range of the key's text, quotes included.
-    pub key_span: Range<usize>,
+    pub key: Text,
     /// The member's value; its span covers the value only, not the key or colon.
     pub value: Node,
 }
 
 /// A number as spelled in the source, already checked against the JSON grammar.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Number(Box<str>);
+pub struct Number(Text);
+
+// What keeps a document of small objects at a few times its text; a change that grows these
+// should be a decision.
+const _: () = assert!(std::mem::size_of::<Text>() == 16);
+const _: () = assert!(std::mem::size_of::<Node>() == 32);
+const _: () = assert!(std::mem::size_of::<Member>() == 48);
+
+/// How many bytes of text a [`Text`] holds without an allocation of its own.
+const INLINE: usize = 14;
+
+/// A key's, string's or number's text, held inside the node when it is short (most of a glTF
+/// document's keys and numbers are: `"componentType"`, `5126`) and on the heap otherwise. An
+/// allocation per key and number would cost more than the text, and bookkeeping besides.
+/// Reads as a `str` (it dereferences to one) and compares with `str` and `String`.
+#[derive(Clone, PartialEq, Eq, Hash)]
+pub struct Text(Repr);
+
+#[derive(Clone, PartialEq, Eq, Hash)]
+enum Repr {
+    /// `bytes[..len]` is the text and the rest zeros, so that equal texts are equal values.
+    Inline { len: u8, bytes: [u8; INLINE] },
+    /// Boxed twice: the thin pointer keeps a `Text` at 16 bytes. Only texts longer than
+    /// [`INLINE`] bytes pay the second allocation.
+    Heap(Box<Box<str>>),
+}
+
+impl Text {
+    /// `s` as a text.
+    pub fn new(s: &str) -> Text {
+        if s.len() > INLINE {
+            return Text(Repr::Heap(Box::new(s.into())));
+        }
+        let mut bytes = [0u8; INLINE];
+        bytes[..s.len()].copy_from_slice(s.as_bytes());
+        Text(Repr::Inline {
+            len: s.len() as u8,
+            bytes,
+        })
+    }
+
+    /// The text as a `str`.
+    pub fn as_str(&self) -> &str {
+        match &self.0 {
+            // Copied whole from a `str`, so always UTF-8.
+            Repr::Inline { .. } => std::str::from_utf8(self.as_bytes()).unwrap_or(""),
+            Repr::Heap(s) => s,
+        }
+    }
+
+    fn as_bytes(&self) -> &[u8] {
+        match &self.0 {
+            Repr::Inline { len, bytes } => bytes.get(..usize::from(*len)).unwrap_or(&[]),
+            Repr::Heap(s) => s.as_bytes(),
+        }
+    }
+}
+
+impl From<&str> for Text {
+    fn from(s: &str) -> Text {
+        Text::new(s)
+    }
+}
+
+impl From<String> for Text {
+    fn from(s: String) -> Text {
+        if s.len() > INLINE {
+            Text(Repr::Heap(Box::new(s.into_boxed_str())))
+        } else {
+            Text::new(&s)
+        }
+    }
+}
+
+impl std::ops::Deref for Text {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        self.as_str()
+    }
+}
+
+impl fmt::Debug for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self.as_str(), f)
+    }
+}
+
+impl fmt::Display for Text {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+// Byte comparisons: no UTF-8 check on the path of every `Node::get`.
+impl PartialEq<str> for Text {
+    fn eq(&self, other: &str) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<&str> for Text {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<String> for Text {
+    fn eq(&self, other: &String) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<Text> for str {
+    fn eq(&self, other: &Text) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<Text> for &str {
+    fn eq(&self, other: &Text) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
+
+impl PartialEq<Text> for String {
+    fn eq(&self, other: &Text) -> bool {
+        self.as_bytes() == other.as_bytes()
+    }
+}
 
 impl Number {
     /// The source text, e.g. `-0`, `1e400`, `3.0`.
@@ -177,13 +313,18 @@ impl Number {
 }
 
 impl Node {
+    /// Byte range of the value's text in the source, from its first to its last byte.
+    pub fn span(&self) -> Range<usize> {
+        self.start as usize..self.end as usize
+    }
+
     /// The value of member `key`, if this is an object that has it.
     pub fn get(&self, key: &str) -> Option<&Node> {
         self.member(key).map(|m| &m.value)
     }
 
-    /// Member `key` with its key span, if this is an object that has it. Like [`Node::get`],
-    /// for when the key's position matters too.
+    /// Member `key`, if this is an object that has it. Like [`Node::get`], for when the
+    /// member itself matters ([`Document::key_span`]).
     pub fn member(&self, key: &str) -> Option<&Member> {
         self.as_object()?.iter().find(|m| m.key == key)
     }
@@ -212,7 +353,7 @@ impl Node {
     /// The decoded string (escapes resolved, lone surrogates as U+FFFD), if this is a string.
     pub fn as_str(&self) -> Option<&str> {
         match &self.kind {
-            Kind::String(s) => Some(s),
+            Kind::String(s) => Some(s.as_str()),
             _ => None,
         }
     }
@@ -286,12 +427,24 @@ impl<'a> Document<'a> {
             let valid = bytes.get(..at).and_then(|b| std::str::from_utf8(b).ok());
             ParseError::new(valid.unwrap_or(""), at, ParseErrorKind::InvalidUtf8)
         })?;
+        if u32::try_from(bytes.len()).is_err() {
+            return Err(ParseError::new(
+                "",
+                0,
+                ParseErrorKind::TooLong {
+                    limit: u32::MAX as usize,
+                },
+            ));
+        }
         let body_start = if bytes.starts_with(BOM) { BOM.len() } else { 0 };
         let mut parser = Parser {
             text: source,
             bytes,
             pos: body_start,
             depth: 0,
+            elements: Vec::new(),
+            members: Vec::new(),
+            key_starts: Vec::new(),
         };
         let root = parser
             .document()
@@ -321,7 +474,39 @@ impl<'a> Document<'a> {
 
     /// The source text of `node`, exactly as written.
     pub fn text(&self, node: &Node) -> &'a str {
-        self.source.get(node.span.clone()).unwrap_or("")
+        self.source.get(node.span()).unwrap_or("")
+    }
+
+    /// The byte range of `member`'s key, quotes included: found by reading back from its value
+    /// over the colon to the key's opening quote. `None` when what precedes the value here is no
+    /// key and colon (a member of another document).
+    pub fn key_span(&self, member: &Member) -> Option<Range<usize>> {
+        let bytes = self.source.as_bytes();
+        let ws = |b: &u8| matches!(b, b' ' | b'\t' | b'\n' | b'\r');
+        let before_value = bytes.get(..member.value.span().start)?;
+        let colon = before_value.iter().rposition(|b| !ws(b))?;
+        let before_colon = bytes
+            .get(..colon)
+            .filter(|_| bytes.get(colon) == Some(&b':'))?;
+        let close = before_colon.iter().rposition(|b| !ws(b))?;
+        if bytes.get(close) != Some(&b'"') {
+            return None;
+        }
+        // Inside a string every quote is escaped, that is preceded by an odd number of
+        // backslashes; the opening quote follows no backslash at all.
+        let mut at = close;
+        loop {
+            at = bytes.get(..at)?.iter().rposition(|&b| b == b'"')?;
+            let backslashes = bytes
+                .get(..at)?
+                .iter()
+                .rev()
+                .take_while(|&&b| b == b'\\')
+                .count();
+            if backslashes % 2 == 0 {
+                return Some(at..close + 1);
+            }
+        }
     }
 
     /// A new editor with no edits for this document (the same as [`Editor::new`]).
@@ -391,6 +576,11 @@ pub enum ParseErrorKind {
         /// The decoded key.
         key: String,
     },
+    /// The text is longer than node offsets can say (4 GiB); `offset` is 0.
+    TooLong {
+        /// The most bytes a document may have.
+        limit: usize,
+    },
     /// Something other than whitespace after the top-level value; `offset` is at it.
     TrailingCharacters {
         /// The first such character.
@@ -445,6 +635,9 @@ impl fmt::Display for ParseError {
             ParseErrorKind::DuplicateKey { key } => {
                 write!(f, "the key {key:?} appears twice in one object")
             }
+            ParseErrorKind::TooLong { limit } => {
+                write!(f, "the text is longer than {limit} bytes")
+            }
             ParseErrorKind::TrailingCharacters { found } => {
                 write!(f, "found {found:?} after the end of the top-level value")
             }
@@ -461,6 +654,14 @@ struct Parser<'a> {
     bytes: &'a [u8],
     pos: usize,
     depth: usize,
+    /// The elements of the arrays being read, innermost last. A closing array takes its own
+    /// off the end, in one allocation of exactly their number: no growth, no slack, one
+    /// working list for the whole document.
+    elements: Vec<Node>,
+    /// The same for objects' members,
+    members: Vec<Member>,
+    /// and where each of their keys starts, for duplicate-key errors.
+    key_starts: Vec<usize>,
 }
 
 impl Parser<'_> {
@@ -523,8 +724,10 @@ impl Parser<'_> {
             Some(b'n') => self.literal(b"null", Kind::Null)?,
             _ => return Err(self.unexpected("a value")),
         };
+        // `parse` refused texts whose offsets do not fit.
         Ok(Node {
-            span: start..self.pos,
+            start: start as u32,
+            end: self.pos as u32,
             kind,
         })
     }
@@ -550,15 +753,16 @@ impl Parser<'_> {
     fn array(&mut self) -> Result<Kind, Fail> {
         self.enter()?;
         self.pos += 1; // '['
-        let mut elements = Vec::new();
+        let base = self.elements.len();
         self.skip_ws();
         if self.peek() == Some(b']') {
             self.pos += 1;
             self.depth -= 1;
-            return Ok(Kind::Array(elements));
+            return Ok(Kind::Array(Box::default()));
         }
         loop {
-            elements.push(self.value()?);
+            let element = self.value()?;
+            self.elements.push(element);
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -571,10 +775,7 @@ impl Parser<'_> {
                 Some(b']') => {
                     self.pos += 1;
                     self.depth -= 1;
-                    // Growth leaves up to half of a vector unused; a scene of many small
-                    // objects would otherwise carry that slack in every one of them.
-                    elements.shrink_to_fit();
-                    return Ok(Kind::Array(elements));
+                    return Ok(Kind::Array(self.elements.drain(base..).collect()));
                 }
                 _ => return Err(self.unexpected("',' or ']'")),
             }
@@ -584,12 +785,12 @@ impl Parser<'_> {
     fn object(&mut self) -> Result<Kind, Fail> {
         self.enter()?;
         self.pos += 1; // '{'
-        let mut members = Vec::new();
+        let base = self.members.len();
         self.skip_ws();
         if self.peek() == Some(b'}') {
             self.pos += 1;
             self.depth -= 1;
-            return Ok(Kind::Object(members));
+            return Ok(Kind::Object(Box::default()));
         }
         loop {
             if self.peek() != Some(b'"') {
@@ -597,7 +798,6 @@ impl Parser<'_> {
             }
             let key_start = self.pos;
             let key = self.string()?;
-            let key_span = key_start..self.pos;
             self.skip_ws();
             if self.peek() != Some(b':') {
                 return Err(self.unexpected("':'"));
@@ -605,11 +805,8 @@ impl Parser<'_> {
             self.pos += 1;
             self.skip_ws();
             let value = self.value()?;
-            members.push(Member {
-                key,
-                key_span,
-                value,
-            });
+            self.members.push(Member { key, value });
+            self.key_starts.push(key_start);
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -622,18 +819,22 @@ impl Parser<'_> {
                 Some(b'}') => {
                     self.pos += 1;
                     self.depth -= 1;
-                    check_unique_keys(&members)?;
-                    members.shrink_to_fit();
-                    return Ok(Kind::Object(members));
+                    let members = self.members.get(base..).unwrap_or(&[]);
+                    let starts = self.key_starts.get(base..).unwrap_or(&[]);
+                    check_unique_keys(members, starts)?;
+                    self.key_starts.truncate(base);
+                    return Ok(Kind::Object(self.members.drain(base..).collect()));
                 }
                 _ => return Err(self.unexpected("',' or '}'")),
             }
         }
     }
 
-    fn string(&mut self) -> Result<String, Fail> {
+    /// A string's decoded text. Most have no escapes and are taken from the source as they
+    /// stand; the others are decoded into a buffer.
+    fn string(&mut self) -> Result<Text, Fail> {
         self.pos += 1; // opening quote
-        let mut out = String::new();
+        let mut out: Option<String> = None;
         loop {
             // Copy the run of plain characters in one piece. It starts and ends next to ASCII
             // bytes (or the end), so both ends are character boundaries.
@@ -644,14 +845,24 @@ impl Parser<'_> {
                 }
                 self.pos += 1;
             }
-            out.push_str(self.text.get(run_start..self.pos).unwrap_or(""));
+            let run = self.text.get(run_start..self.pos).unwrap_or("");
             match self.peek() {
                 None => return Err((self.pos, ParseErrorKind::UnexpectedEnd)),
                 Some(b'"') => {
                     self.pos += 1;
-                    return Ok(out);
+                    return Ok(match out {
+                        None => Text::new(run),
+                        Some(mut decoded) => {
+                            decoded.push_str(run);
+                            Text::from(decoded)
+                        }
+                    });
                 }
-                Some(b'\\') => self.escape(&mut out)?,
+                Some(b'\\') => {
+                    let decoded = out.get_or_insert_with(String::new);
+                    decoded.push_str(run);
+                    self.escape(decoded)?;
+                }
                 Some(byte) => return Err((self.pos, ParseErrorKind::ControlCharacter { byte })),
             }
         }
@@ -755,7 +966,7 @@ impl Parser<'_> {
             self.required_digits()?;
         }
         let raw = self.text.get(start..self.pos).unwrap_or("0");
-        Ok(Kind::Number(Number(raw.into())))
+        Ok(Kind::Number(Number(Text::new(raw))))
     }
 
     fn digits(&mut self) {
@@ -775,29 +986,29 @@ impl Parser<'_> {
 }
 
 /// Sorting beats hashing here: no hasher to seed against hostile keys, and no borrow of the
-/// member list while it is built.
-fn check_unique_keys(members: &[Member]) -> Result<(), Fail> {
+/// member list while it is built. `starts` holds where each member's key starts.
+fn check_unique_keys(members: &[Member], starts: &[usize]) -> Result<(), Fail> {
     if members.len() < 2 {
         return Ok(());
     }
-    let mut sorted: Vec<&Member> = members.iter().collect();
-    sorted.sort_by(|a, b| {
-        a.key
-            .cmp(&b.key)
-            .then(a.key_span.start.cmp(&b.key_span.start))
-    });
+    let start = |i: usize| starts.get(i).copied().unwrap_or(0);
+    let key = |i: usize| members.get(i).map_or("", |m| m.key.as_str());
+    let mut sorted: Vec<usize> = (0..members.len()).collect();
+    sorted.sort_by(|&a, &b| key(a).cmp(key(b)).then(start(a).cmp(&start(b))));
     // Of all the repeats, report the one that comes first in the text.
     let repeat = sorted
         .windows(2)
         .filter_map(|pair| match pair {
-            [a, b] if a.key == b.key => Some(*b),
+            [a, b] if key(*a) == key(*b) => Some(*b),
             _ => None,
         })
-        .min_by_key(|m| m.key_span.start);
+        .min_by_key(|&m| start(m));
     match repeat {
         Some(m) => Err((
-            m.key_span.start,
-            ParseErrorKind::DuplicateKey { key: m.key.clone() },
+            start(m),
+            ParseErrorKind::DuplicateKey {
+                key: key(m).to_owned(),
+            },
         )),
         None => Ok(()),
     }
@@ -931,27 +1142,66 @@ pub struct Editor<'d, 'a> {
     arrays: BTreeMap<usize, ArrayEdit>,
 }
 
+/// One object's edits. The members' keys are not copied: every edit names the object's node,
+/// whose members have them.
 #[derive(Debug)]
 struct ObjectEdit {
     open: usize,
-    /// Per original member: key span, value span, key, removed.
-    members: Vec<(Range<usize>, Range<usize>, String, bool)>,
-    added: Vec<(String, NewValue)>,
+    /// Per original member: where its key starts and its value ends (what a removal cuts).
+    members: Box<[(u32, u32)]>,
+    /// The last original member's key end and value start: its colon, which added members copy.
+    last_colon: (u32, u32),
+    /// Per original member, whether it is removed; empty while none is.
+    removed: Vec<bool>,
+    added: Vec<(Text, NewValue)>,
 }
 
 #[derive(Debug)]
 enum NewValue {
-    Text(String),
-    /// An array member created by [`Editor::push_to_array_member`]; grows with each push.
-    Array(Vec<String>),
+    Text(Text),
+    /// An array member created by [`Editor::push_to_array_member`]; grows with each push. Its
+    /// elements' texts, separated by commas.
+    Array {
+        items: String,
+        count: usize,
+    },
 }
 
+/// One array's edits.
 #[derive(Debug)]
 struct ArrayEdit {
     open: usize,
-    elements: Vec<Range<usize>>,
+    /// Per original element: its span.
+    elements: Box<[(u32, u32)]>,
+    /// Per original element, whether it is removed; empty while none is.
     removed: Vec<bool>,
-    added: Vec<String>,
+    /// The added elements' texts, each after the comma and whitespace that separate it from
+    /// the one before: one text for all, which rendering takes as it is.
+    added: String,
+    /// How many elements were added.
+    added_count: usize,
+    /// The first added element's separator's length, left out when no original element is
+    /// kept.
+    first_separator: usize,
+}
+
+/// Whether item `i` is removed, in a list that is empty while none is.
+fn is_removed(removed: &[bool], i: usize) -> bool {
+    removed.get(i).copied().unwrap_or(false)
+}
+
+/// Marks item `i` of `n` removed; false when there is no such item.
+fn mark_removed(removed: &mut Vec<bool>, n: usize, i: usize) -> bool {
+    if i >= n {
+        return false;
+    }
+    if removed.is_empty() {
+        *removed = vec![false; n];
+    }
+    if let Some(r) = removed.get_mut(i) {
+        *r = true;
+    }
+    true
 }
 
 impl<'d, 'a> Editor<'d, 'a> {
@@ -969,8 +1219,8 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// Replaces `node`'s text with `text`, which must be one JSON value.
     pub fn replace(&mut self, node: &Node, text: impl Into<String>) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
-        self.check_span(&node.span)?;
-        self.replacements.push((node.span.clone(), text));
+        self.check_span(&node.span())?;
+        self.replacements.push((node.span(), text));
         Ok(())
     }
 
@@ -983,10 +1233,10 @@ impl<'d, 'a> Editor<'d, 'a> {
     ) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
-        if edit.has_key(key) {
+        if edit.has_key(object, key) {
             return Err(EditError::MemberExists { key: key.into() });
         }
-        edit.added.push((key.into(), NewValue::Text(text)));
+        edit.add(key, NewValue::Text(text.into()));
         Ok(())
     }
 
@@ -1000,17 +1250,17 @@ impl<'d, 'a> Editor<'d, 'a> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
         if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
-            *value = NewValue::Text(text);
+            *value = NewValue::Text(text.into());
             return Ok(());
         }
         let existing = object
             .as_object()
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
         match existing {
-            Some((i, member)) if !edit.members.get(i).is_some_and(|m| m.3) => {
-                self.replacements.push((member.value.span.clone(), text));
+            Some((i, member)) if !is_removed(&edit.removed, i) => {
+                self.replacements.push((member.value.span(), text));
             }
-            _ => edit.added.push((key.into(), NewValue::Text(text))),
+            _ => edit.add(key, NewValue::Text(text.into())),
         }
         Ok(())
     }
@@ -1022,13 +1272,11 @@ impl<'d, 'a> Editor<'d, 'a> {
             edit.added.remove(i);
             return Ok(true);
         }
-        match edit.members.iter_mut().find(|m| m.2 == key && !m.3) {
-            Some(member) => {
-                member.3 = true;
-                Ok(true)
-            }
-            None => Ok(false),
-        }
+        let members = object.as_object().unwrap_or(&[]);
+        let found = (0..members.len()).find(|&i| {
+            members.get(i).is_some_and(|m| m.key == key) && !is_removed(&edit.removed, i)
+        });
+        Ok(found.is_some_and(|i| mark_removed(&mut edit.removed, members.len(), i)))
     }
 
     /// Appends an element to `array` and returns its index in the edited array.
@@ -1039,13 +1287,12 @@ impl<'d, 'a> Editor<'d, 'a> {
     ) -> Result<usize, EditError> {
         let text = checked_text(text.into())?;
         let Some(elements) = array.as_array() else {
-            return Err(EditError::NotAnArray {
-                span: array.span.clone(),
-            });
+            return Err(EditError::NotAnArray { span: array.span() });
         };
+        let source = self.doc.source;
         let edit = self.array_edit(array, elements)?;
-        edit.added.push(text);
-        Ok(edit.elements.len() + edit.added.len() - 1)
+        edit.add(source, &text)?;
+        Ok(edit.elements.len() + edit.added_count - 1)
     }
 
     /// Removes element `index` (with its comma) from `array`. Returns whether there was such an
@@ -1053,30 +1300,24 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// caller must reflect wherever they are referenced.
     pub fn remove_element(&mut self, array: &Node, index: usize) -> Result<bool, EditError> {
         let Some(elements) = array.as_array() else {
-            return Err(EditError::NotAnArray {
-                span: array.span.clone(),
-            });
+            return Err(EditError::NotAnArray { span: array.span() });
         };
         let edit = self.array_edit(array, elements)?;
-        match edit.removed.get_mut(index) {
-            Some(removed) => {
-                *removed = true;
-                Ok(true)
-            }
-            None => Ok(false),
-        }
+        Ok(mark_removed(&mut edit.removed, edit.elements.len(), index))
     }
 
     fn array_edit(&mut self, array: &Node, elements: &[Node]) -> Result<&mut ArrayEdit, EditError> {
-        self.check_span(&array.span)?;
+        self.check_span(&array.span())?;
         Ok(self
             .arrays
-            .entry(array.span.start)
+            .entry(array.span().start)
             .or_insert_with(|| ArrayEdit {
-                open: array.span.start,
-                elements: elements.iter().map(|e| e.span.clone()).collect(),
-                removed: vec![false; elements.len()],
-                added: Vec::new(),
+                open: array.span().start,
+                elements: elements.iter().map(|e| (e.start, e.end)).collect(),
+                removed: Vec::new(),
+                added: String::new(),
+                added_count: 0,
+                first_separator: 0,
             }))
     }
 
@@ -1093,9 +1334,11 @@ impl<'d, 'a> Editor<'d, 'a> {
         let edit = self.object_edit(object)?;
         if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
             return match value {
-                NewValue::Array(items) => {
-                    items.push(text);
-                    Ok(items.len() - 1)
+                NewValue::Array { items, count } => {
+                    items.push(',');
+                    items.push_str(&text);
+                    *count += 1;
+                    Ok(*count - 1)
                 }
                 NewValue::Text(_) => Err(EditError::MemberExists { key: key.into() }),
             };
@@ -1104,11 +1347,15 @@ impl<'d, 'a> Editor<'d, 'a> {
             .as_object()
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
         match existing {
-            Some((i, member)) if !edit.members.get(i).is_some_and(|m| m.3) => {
+            Some((i, member)) if !is_removed(&edit.removed, i) => {
                 self.append_element(&member.value, text)
             }
             _ => {
-                edit.added.push((key.into(), NewValue::Array(vec![text])));
+                let items = NewValue::Array {
+                    items: text,
+                    count: 1,
+                };
+                edit.add(key, items);
                 Ok(0)
             }
         }
@@ -1128,37 +1375,87 @@ impl<'d, 'a> Editor<'d, 'a> {
     fn object_edit(&mut self, object: &Node) -> Result<&mut ObjectEdit, EditError> {
         let Some(members) = object.as_object() else {
             return Err(EditError::NotAnObject {
-                span: object.span.clone(),
+                span: object.span(),
             });
         };
-        self.check_span(&object.span)?;
-        Ok(self
-            .objects
-            .entry(object.span.start)
-            .or_insert_with(|| ObjectEdit {
-                open: object.span.start,
-                members: members
-                    .iter()
-                    .map(|m| {
-                        (
-                            m.key_span.clone(),
-                            m.value.span.clone(),
-                            m.key.clone(),
-                            false,
-                        )
-                    })
-                    .collect(),
+        self.check_span(&object.span())?;
+        let open = object.span().start;
+        if !self.objects.contains_key(&open) {
+            let mut spans = Vec::with_capacity(members.len());
+            let mut last_colon = (0, 0);
+            for m in members {
+                let key = self.doc.key_span(m).ok_or(EditError::ForeignNode {
+                    span: m.value.span(),
+                })?;
+                // Offsets within the document, which `parse` kept to 32 bits.
+                spans.push((key.start as u32, m.value.end));
+                last_colon = (key.end as u32, m.value.start);
+            }
+            let edit = ObjectEdit {
+                open,
+                members: spans.into_boxed_slice(),
+                last_colon,
+                removed: Vec::new(),
                 added: Vec::new(),
-            }))
+            };
+            self.objects.insert(open, edit);
+        }
+        self.objects.get_mut(&open).ok_or(EditError::ForeignNode {
+            span: object.span(),
+        })
     }
 
     /// The edited document. Fails only on overlapping edits or nodes from another document.
     pub fn render(&self) -> Result<String, EditError> {
         let source = self.doc.source;
-        let mut pieces: Vec<(Range<usize>, String)> = self.replacements.clone();
+        let mut pieces: Vec<(Range<usize>, Cow<'_, str>)> = self
+            .replacements
+            .iter()
+            .map(|(range, text)| (range.clone(), Cow::Borrowed(text.as_str())))
+            .collect();
         for edit in self.arrays.values() {
-            edit.pieces(source, &mut pieces)?;
+            if let Some((at, skip)) = edit.pieces(source, &mut pieces)? {
+                let text = edit.added.get(skip..).unwrap_or("");
+                pieces.push((at..at, Cow::Borrowed(text)));
+            }
         }
+        let rendered = self.pieces(pieces)?;
+        let mut out = String::with_capacity(rendered.len());
+        rendered.for_each_part(|part| out.push_str(part));
+        Ok(out)
+    }
+
+    /// The edited document as the pieces it is made of, checked like [`Editor::render`]'s,
+    /// for a caller that copies it once into a larger output (a GLB's JSON chunk) rather than
+    /// hold a text of it besides. It borrows the source text alone, and takes the editor's
+    /// texts rather than copy them: the editor's bookkeeping and the document's tree can go
+    /// before the output is made.
+    pub fn into_rendered(mut self) -> Result<Rendered<'a>, EditError> {
+        let source = self.doc.source;
+        let mut pieces: Vec<(Range<usize>, Cow<'a, str>)> = std::mem::take(&mut self.replacements)
+            .into_iter()
+            .map(|(range, text)| (range, Cow::Owned(text)))
+            .collect();
+        for (_, mut edit) in std::mem::take(&mut self.arrays) {
+            if let Some((at, skip)) = edit.pieces(source, &mut pieces)? {
+                let mut text = std::mem::take(&mut edit.added);
+                text.drain(..skip.min(text.len()));
+                pieces.push((at..at, Cow::Owned(text)));
+            }
+        }
+        self.pieces(pieces)
+    }
+
+    /// The replacements' and arrays' pieces (in that order) with the objects' added, sorted
+    /// and checked: the order in which they were added settles ties.
+    fn pieces<'p>(
+        &self,
+        mut pieces: Vec<(Range<usize>, Cow<'p, str>)>,
+    ) -> Result<Rendered<'p>, EditError>
+    where
+        'a: 'p,
+    {
+        let source = self.doc.source;
         for edit in self.objects.values() {
             edit.pieces(source, &mut pieces)?;
         }
@@ -1166,8 +1463,9 @@ impl<'d, 'a> Editor<'d, 'a> {
         // insertion at the start of a replaced span goes before it.
         pieces.sort_by_key(|(range, _)| (range.start, range.end));
 
-        let mut out = String::with_capacity(source.len());
-        let mut cursor = self.doc.body_start;
+        let body_start = self.doc.body_start;
+        let mut len = source.len().saturating_sub(body_start);
+        let mut cursor = body_start;
         let mut previous = cursor..cursor;
         for (range, text) in &pieces {
             if range.start < cursor {
@@ -1176,18 +1474,55 @@ impl<'d, 'a> Editor<'d, 'a> {
                     second: range.clone(),
                 });
             }
-            let kept = source
-                .get(cursor..range.start)
-                .ok_or(EditError::ForeignNode {
+            if source.get(cursor..range.start).is_none() || source.get(range.clone()).is_none() {
+                return Err(EditError::ForeignNode {
                     span: range.clone(),
-                })?;
-            out.push_str(kept);
-            out.push_str(text);
+                });
+            }
+            len = len - range.len() + text.len();
             cursor = range.end;
             previous = range.clone();
         }
-        out.push_str(source.get(cursor..).unwrap_or(""));
-        Ok(out)
+        Ok(Rendered {
+            source,
+            body_start,
+            pieces,
+            len,
+        })
+    }
+}
+
+/// An edited document in pieces: the source's kept runs and the edits' new text, in order
+/// ([`Editor::into_rendered`]). Every piece was checked to lie in the source, after the one before.
+#[derive(Debug)]
+pub struct Rendered<'e> {
+    source: &'e str,
+    body_start: usize,
+    pieces: Vec<(Range<usize>, Cow<'e, str>)>,
+    len: usize,
+}
+
+impl Rendered<'_> {
+    /// The length of the edited text in bytes.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the edited text is empty (never, for a document: it holds a value).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Calls `f` with each part of the edited text in order; together they are
+    /// [`Rendered::len`] bytes.
+    pub fn for_each_part(&self, mut f: impl FnMut(&str)) {
+        let mut cursor = self.body_start;
+        for (range, text) in &self.pieces {
+            f(self.source.get(cursor..range.start).unwrap_or(""));
+            f(text);
+            cursor = range.end;
+        }
+        f(self.source.get(cursor..).unwrap_or(""));
     }
 }
 
@@ -1233,7 +1568,7 @@ fn removal_pieces(
     start: impl Fn(usize) -> usize,
     end: impl Fn(usize) -> usize,
     source: &str,
-    out: &mut Vec<(Range<usize>, String)>,
+    out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
 ) -> Result<(), EditError> {
     let mut i = 0;
     while i < n {
@@ -1254,21 +1589,38 @@ fn removal_pieces(
             start(first)..end(last)
         };
         slice(source, range.clone())?;
-        out.push((range, String::new()));
+        out.push((range, Cow::Borrowed("")));
     }
     Ok(())
 }
 
 impl ObjectEdit {
-    fn has_key(&self, key: &str) -> bool {
-        self.members.iter().any(|m| m.2 == key && !m.3) || self.added.iter().any(|(k, _)| k == key)
+    /// Whether the edited object has member `key`: an original one not removed (`object` is
+    /// the edited node), or an added one.
+    fn has_key(&self, object: &Node, key: &str) -> bool {
+        let members = object.as_object().unwrap_or(&[]);
+        let original = members
+            .iter()
+            .enumerate()
+            .any(|(i, m)| m.key == key && !is_removed(&self.removed, i));
+        original || self.added.iter().any(|(k, _)| k == key)
     }
 
-    fn pieces(&self, source: &str, out: &mut Vec<(Range<usize>, String)>) -> Result<(), EditError> {
+    /// Adds a member; the list is kept to its length (most edited objects gain one member).
+    fn add(&mut self, key: &str, value: NewValue) {
+        self.added.reserve_exact(1);
+        self.added.push((Text::new(key), value));
+    }
+
+    fn pieces(
+        &self,
+        source: &str,
+        out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
+    ) -> Result<(), EditError> {
         let n = self.members.len();
-        let start = |i: usize| self.members.get(i).map_or(0, |m| m.0.start);
-        let end = |i: usize| self.members.get(i).map_or(0, |m| m.1.end);
-        let removed = |i: usize| self.members.get(i).is_some_and(|m| m.3);
+        let start = |i: usize| self.members.get(i).map_or(0, |m| m.0 as usize);
+        let end = |i: usize| self.members.get(i).map_or(0, |m| m.1 as usize);
+        let removed = |i: usize| is_removed(&self.removed, i);
 
         removal_pieces(n, removed, start, end, source, out)?;
 
@@ -1277,18 +1629,19 @@ impl ObjectEdit {
         }
         // New members copy the layout of the last existing ones: the whitespace before a key,
         // and the spelling of the colon.
-        let (at, lead, colon) = match self.members.as_slice() {
-            [] => (self.open + 1, "", ":"),
-            [.., (key, value, _, _)] => {
+        let (key_end, value_start) = (self.last_colon.0 as usize, self.last_colon.1 as usize);
+        let (at, lead, colon) = match n {
+            0 => (self.open + 1, "", ":"),
+            _ => {
                 let lead = if n >= 2 {
-                    lead_after_comma(slice(source, end(n - 2)..key.start)?)
+                    lead_after_comma(slice(source, end(n - 2)..start(n - 1))?)
                 } else {
-                    slice(source, self.open + 1..key.start)?
+                    slice(source, self.open + 1..start(n - 1))?
                 };
-                (value.end, lead, slice(source, key.end..value.start)?)
+                (end(n - 1), lead, slice(source, key_end..value_start)?)
             }
         };
-        let mut comma = self.members.iter().any(|m| !m.3);
+        let mut comma = (0..n).any(|i| !removed(i));
         let mut text = String::new();
         for (key, value) in &self.added {
             if comma {
@@ -1300,47 +1653,61 @@ impl ObjectEdit {
             text.push_str(colon);
             match value {
                 NewValue::Text(t) => text.push_str(t),
-                NewValue::Array(items) => {
+                NewValue::Array { items, .. } => {
                     text.push('[');
-                    text.push_str(&items.join(","));
+                    text.push_str(items);
                     text.push(']');
                 }
             }
         }
-        out.push((at..at, text));
+        out.push((at..at, Cow::Owned(text)));
         Ok(())
     }
 }
 
 impl ArrayEdit {
-    fn pieces(&self, source: &str, out: &mut Vec<(Range<usize>, String)>) -> Result<(), EditError> {
-        let n = self.elements.len();
-        let removed = |i: usize| self.removed.get(i).copied().unwrap_or(false);
-        let start = |i: usize| self.elements.get(i).map_or(0, |e| e.start);
-        let end = |i: usize| self.elements.get(i).map_or(0, |e| e.end);
-        removal_pieces(n, removed, start, end, source, out)?;
-        if self.added.is_empty() {
-            return Ok(());
-        }
-        let kept = (0..n).filter(|&i| !removed(i)).count();
-        let (at, lead) = match self.elements.as_slice() {
-            [] => (self.open + 1, ""),
-            [only] => (only.end, slice(source, self.open + 1..only.start)?),
-            [.., before, last] => (
-                last.end,
-                lead_after_comma(slice(source, before.end..last.start)?),
-            ),
-        };
-        let mut text = String::new();
-        for (i, item) in self.added.iter().enumerate() {
-            if kept > 0 || i > 0 {
-                text.push(',');
-                text.push_str(lead);
+    /// Appends an element's text, after the separator the array's own elements have: the
+    /// whitespace after the comma between the last two, or before the only one.
+    fn add(&mut self, source: &str, text: &str) -> Result<(), EditError> {
+        let lead = match *self.elements {
+            [] => "",
+            [(start, _)] => slice(source, self.open + 1..start as usize)?,
+            [.., (_, before_end), (last_start, _)] => {
+                lead_after_comma(slice(source, before_end as usize..last_start as usize)?)
             }
-            text.push_str(item);
+        };
+        if self.added_count == 0 {
+            self.first_separator = 1 + lead.len();
         }
-        out.push((at..at, text));
+        self.added.push(',');
+        self.added.push_str(lead);
+        self.added.push_str(text);
+        self.added_count += 1;
         Ok(())
+    }
+
+    /// The removals' pieces, and where the added elements go with how much of their text to
+    /// leave out (the first separator, when no original element is kept).
+    fn pieces(
+        &self,
+        source: &str,
+        out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
+    ) -> Result<Option<(usize, usize)>, EditError> {
+        let n = self.elements.len();
+        let removed = |i: usize| is_removed(&self.removed, i);
+        let start = |i: usize| self.elements.get(i).map_or(0, |e| e.0 as usize);
+        let end = |i: usize| self.elements.get(i).map_or(0, |e| e.1 as usize);
+        removal_pieces(n, removed, start, end, source, out)?;
+        if self.added_count == 0 {
+            return Ok(None);
+        }
+        let at = match n {
+            0 => self.open + 1,
+            _ => end(n - 1),
+        };
+        let kept = (0..n).any(|i| !removed(i));
+        let skip = if kept { 0 } else { self.first_separator };
+        Ok(Some((at, skip)))
     }
 }
 
@@ -1367,6 +1734,12 @@ mod tests {
         let out = ed.render().unwrap();
         // Every edit must leave valid JSON behind.
         parse(&out).unwrap_or_else(|e| panic!("{out:?}: {e}"));
+        // The pieces a GLB is written from say the same.
+        let rendered = ed.into_rendered().unwrap();
+        let mut joined = String::new();
+        rendered.for_each_part(|part| joined.push_str(part));
+        assert_eq!(joined, out);
+        assert_eq!(rendered.len(), out.len());
         out
     }
 
@@ -1379,7 +1752,7 @@ mod tests {
         let doc = parse(ODD).unwrap();
         assert_eq!(doc.editor().render().unwrap(), ODD);
         let root = doc.root();
-        assert_eq!(root.span, 4..ODD.trim_end().len());
+        assert_eq!(root.span(), 4..ODD.trim_end().len());
         let a = root.get("a").unwrap();
         assert_eq!(doc.text(a.index(1).unwrap()), "2.50");
         assert_eq!(a.index(2).unwrap().as_number().unwrap().raw(), "-0");
@@ -1395,6 +1768,70 @@ mod tests {
             Some(0)
         );
         assert!(root.get("missing").is_none() && root.index(0).is_none());
+    }
+
+    #[test]
+    fn texts_read_the_same_inline_and_on_the_heap() {
+        // Either side of the inline limit, with a multi-byte character at the edge.
+        for text in [
+            "",
+            "a",
+            "componentType",
+            "exactly14bytes",
+            "fifteen bytes!!",
+            "é2345678901é",
+            "é23456789012é",
+        ] {
+            let t = Text::new(text);
+            assert_eq!(t.as_str(), text);
+            assert_eq!(t, *text);
+            assert_eq!(t, Text::from(text.to_owned()));
+            assert_eq!(format!("{t}"), text);
+            assert_eq!(format!("{t:?}"), format!("{text:?}"));
+        }
+        assert_ne!(Text::new("ab"), Text::new("abc"));
+        // Long keys, strings and numbers are found and compared like short ones.
+        let doc = parse(r#"{"KHR_materials_emissive_strength": "a string longer than fourteen", "n": 0.1000000000000000055511151231257827}"#).unwrap();
+        let root = doc.root();
+        assert_eq!(
+            root.get("KHR_materials_emissive_strength")
+                .and_then(Node::as_str),
+            Some("a string longer than fourteen")
+        );
+        let n = root.get("n").unwrap();
+        assert_eq!(
+            n.as_number().unwrap().raw(),
+            "0.1000000000000000055511151231257827"
+        );
+        assert_eq!(doc.text(n), "0.1000000000000000055511151231257827");
+    }
+
+    #[test]
+    fn key_spans_are_found_from_the_values() {
+        let text = r#"{ "a" : 1,"b\"":[2] , "\\":{},
+            "q\"\\\"" :null, "é\u00e9":"x"}"#;
+        let doc = parse(text).unwrap();
+        let spelled: Vec<&str> = doc
+            .root()
+            .as_object()
+            .unwrap()
+            .iter()
+            .map(|m| &text[doc.key_span(m).unwrap()])
+            .collect();
+        assert_eq!(
+            spelled,
+            [
+                r#""a""#,
+                r#""b\"""#,
+                r#""\\""#,
+                r#""q\"\\\"""#,
+                r#""é\u00e9""#
+            ]
+        );
+        // A member of another document, whose value follows no key and colon here.
+        let other = parse(r#"{"zzzzzzzzzzzzzzzzzzzzzzzzzzzzzz": 1}"#).unwrap();
+        let foreign = &other.root().as_object().unwrap()[0];
+        assert_eq!(doc.key_span(foreign), None);
     }
 
     #[test]
@@ -1545,7 +1982,7 @@ mod tests {
         let text = "\u{feff}{\"a\": 1}";
         let doc = parse(text).unwrap();
         assert!(doc.had_bom());
-        assert_eq!(doc.root().span, 3..text.len());
+        assert_eq!(doc.root().span(), 3..text.len());
         assert_eq!(doc.editor().render().unwrap(), "{\"a\": 1}");
         // Only at the very start.
         assert!(matches!(
@@ -1752,6 +2189,15 @@ mod tests {
             assert!(ed.remove_member(doc.root(), "b").unwrap());
         });
         assert_eq!(out, "{\"a\":1}");
+        // Every element removed, before and after appending: the first added one takes no
+        // comma, the next the array's own separator.
+        let out = edited("[ 1,\n  2 ]", |doc, ed| {
+            ed.append_element(doc.root(), "3").unwrap();
+            ed.remove_element(doc.root(), 0).unwrap();
+            ed.remove_element(doc.root(), 1).unwrap();
+            ed.append_element(doc.root(), "4").unwrap();
+        });
+        assert_eq!(out, "[ 3,\n  4 ]");
     }
 
     #[test]

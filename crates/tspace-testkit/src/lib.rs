@@ -24,6 +24,7 @@ pub mod fixtures;
 pub mod fuzz;
 pub mod glb_builder;
 pub mod invariants;
+pub mod json_heavy;
 pub mod meshes;
 pub mod process;
 pub mod random_mesh;

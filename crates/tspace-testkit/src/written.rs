@@ -61,7 +61,7 @@ pub fn read_primitives(bytes: &[u8]) -> Vec<WrittenPrimitive> {
                     .as_object()
                     .unwrap_or(&[])
                     .iter()
-                    .map(|m| (m.key.clone(), raw(index(Some(&m.value)))))
+                    .map(|m| (m.key.to_string(), raw(index(Some(&m.value)))))
                     .collect(),
                 indices: accessor::read_indices_json(
                     root,

@@ -64,7 +64,7 @@ fn covered_accessors(primitive: &Node, ext: &Node) -> Vec<(String, usize)> {
         .and_then(Node::as_object)
         .unwrap_or(&[])
         .iter()
-        .filter_map(|m| Some((m.key.clone(), index_of(attributes?.get(&m.key))?)))
+        .filter_map(|m| Some((m.key.to_string(), index_of(attributes?.get(&m.key))?)))
         .collect();
     if let Some(i) = index_of(primitive.get("indices")) {
         covered.push(("indices".into(), i));

@@ -260,7 +260,12 @@ pub fn write(
     bin: Option<&[u8]>,
     other_chunks: &[Chunk<'_>],
 ) -> Result<Vec<u8>, GlbError> {
-    write_pieces(json, bin.as_ref().map(std::slice::from_ref), other_chunks)
+    write_with(
+        json.len(),
+        |out| out.extend_from_slice(json),
+        bin.as_ref().map(std::slice::from_ref),
+        other_chunks,
+    )
 }
 
 /// [`write`], with the BIN chunk given as the pieces it is made of, in order: each byte is
@@ -270,23 +275,58 @@ pub fn write_pieces(
     bin: Option<&[&[u8]]>,
     other_chunks: &[Chunk<'_>],
 ) -> Result<Vec<u8>, GlbError> {
-    let json_piece = [json];
-    let chunks: Vec<(u32, &[&[u8]])> = std::iter::once((CHUNK_JSON, &json_piece[..]))
-        .chain(bin.map(|b| (CHUNK_BIN, b)))
+    write_with(
+        json.len(),
+        |out| out.extend_from_slice(json),
+        bin,
+        other_chunks,
+    )
+}
+
+/// [`write_pieces`], with the JSON written into the file by `json` (which appends about
+/// `json_len` bytes) rather than copied from a text of its own: an edited document goes
+/// straight into its chunk. The lengths in the headers are those of what was written.
+pub fn write_with(
+    json_len: usize,
+    json: impl FnOnce(&mut Vec<u8>),
+    bin: Option<&[&[u8]]>,
+    other_chunks: &[Chunk<'_>],
+) -> Result<Vec<u8>, GlbError> {
+    let after_json: Vec<(u32, &[&[u8]])> = bin
+        .map(|b| (CHUNK_BIN, b))
+        .into_iter()
         .chain(
             other_chunks
                 .iter()
                 .map(|c| (c.kind, std::slice::from_ref(&c.data))),
         )
         .collect();
-    let lengths: Vec<(u32, usize)> = chunks
-        .iter()
-        .map(|(kind, pieces)| (*kind, pieces.iter().map(|p| p.len()).sum()))
-        .collect();
-    let framing = Framing::of(&lengths)?;
+    let lengths = |json_len: usize| -> Vec<(u32, usize)> {
+        std::iter::once((CHUNK_JSON, json_len))
+            .chain(
+                after_json
+                    .iter()
+                    .map(|(kind, pieces)| (*kind, pieces.iter().map(|p| p.len()).sum())),
+            )
+            .collect()
+    };
+    let mut framing = Framing::of(&lengths(json_len))?;
     let mut out = Vec::with_capacity(framing.total);
     out.extend_from_slice(&framing.header);
-    for ((_, pieces), chunk) in chunks.iter().zip(&framing.chunks) {
+    out.extend_from_slice(&[0; CHUNK_HEADER_LEN]);
+    let json_start = out.len();
+    json(&mut out);
+    let written = out.len() - json_start;
+    if written != json_len {
+        framing = Framing::of(&lengths(written))?;
+        out[..HEADER_LEN].copy_from_slice(&framing.header);
+    }
+    let mut chunks = framing.chunks.iter();
+    if let Some(chunk) = chunks.next() {
+        out[HEADER_LEN..json_start].copy_from_slice(&chunk.header);
+        out.resize(out.len() + chunk.padding, chunk.pad_byte);
+    }
+    for ((_, pieces), chunk) in after_json.iter().zip(chunks) {
         out.extend_from_slice(&chunk.header);
         for piece in *pieces {
             out.extend_from_slice(piece);

@@ -34,7 +34,7 @@ use plan::{Action, GeometryKey, PlanOptions, PrimitivePlan, Topology};
 use quantize::Snorm;
 use rayon::prelude::*;
 use std::collections::HashMap;
-use tspace_json::Node;
+use tspace_json::{Node, Text};
 use tspace_tangent::{Cancel, Marks, Method, Options, UvOrigin};
 use write::{Changes, PrimitiveEdit, Ref};
 
@@ -70,13 +70,39 @@ pub struct Internal {
 }
 
 /// [`process`], with the choices of [`Internal`]: load, plan the jobs, compute them, report
-/// every primitive (collecting the edits as it goes), write.
+/// every primitive (collecting the edits as it goes), write; then measure what was written.
 pub fn process_with<'a>(
     bytes: &'a [u8],
     resources: &dyn Resources<'a>,
     options: &SceneOptions,
     internal: &Internal,
 ) -> Result<Processed, SceneError> {
+    let (mut processed, sizes_in) = process_and_write(bytes, resources, options, internal)?;
+    // The input's tree, the computations and the edits are gone by now: the output's tree,
+    // parsed next, does not come on top of them.
+    let json = match (&processed.bytes, &processed.pieces) {
+        (Some(written), _) => Some(output_json(written, options.format)?),
+        (None, Some(pieces)) => Some(match pieces.json() {
+            Some(json) => json,
+            // The input passed through whole: its JSON is the output's.
+            None => output_json(bytes, OutputFormat::Glb)?,
+        }),
+        (None, None) => None,
+    };
+    report_storage(&mut processed.report, sizes_in, json)?;
+    processed.report.finish();
+    processed.timings.lap("storage report");
+    Ok(processed)
+}
+
+/// Everything but measuring the output: the scene processed and written, with the input's
+/// mesh sizes. What it builds on the way, the input's tree first, is dropped when it returns.
+fn process_and_write<'a>(
+    bytes: &'a [u8],
+    resources: &dyn Resources<'a>,
+    options: &SceneOptions,
+    internal: &Internal,
+) -> Result<(Processed, sizes::MeshSizes), SceneError> {
     let limits = options.limits;
     let load_limits = LoadLimits {
         max_buffer_bytes: limits.max_buffer_bytes,
@@ -142,39 +168,32 @@ pub fn process_with<'a>(
     }
     timings.lap("report and edits");
     SceneError::check(cancel)?;
-    let output = write_scene(
-        bytes,
-        &loaded,
-        &mut edits.changes,
-        options,
-        resources,
-        &mut report,
-    )?;
+    // The writer reads the input and the edits alone: what the computations left goes before
+    // it allocates the output (in a scene of many small primitives, as much as the output).
+    let Edits {
+        changes,
+        job_refs,
+        remapped,
+    } = edits;
+    // The computations borrow the decoded accessors (see compute::Geometry), so go first.
+    drop((plans, jobs, computed, painted, job_refs, remapped));
+    drop(decoded);
+    let sizes_in = sizes::measure(root);
+    let output = write_scene(bytes, loaded, changes, options, resources, &mut report)?;
     timings.lap("write");
-    let output_json = match &output {
-        Some(Output::Bytes(bytes)) => Some(output_json(bytes, options.format)?),
-        // The input passed through whole has the input's JSON.
-        Some(Output::Pieces(pieces)) => Some(match pieces.json() {
-            Some(json) => json,
-            None => output_json(bytes, OutputFormat::Glb)?,
-        }),
-        None => None,
-    };
-    report_storage(&mut report, root, output_json)?;
-    report.finish();
-    timings.lap("storage report");
     let (bytes, pieces) = match output {
         Some(Output::Bytes(bytes)) => (Some(bytes), None),
         Some(Output::Pieces(pieces)) => (None, Some(pieces)),
         None => (None, None),
     };
-    Ok(Processed {
+    let processed = Processed {
         bytes,
         pieces,
         report,
         layouts,
         timings,
-    })
+    };
+    Ok((processed, sizes_in))
 }
 
 /// Every job's marks: each triangle's findings and each flip vertex, by the same test the core's
@@ -259,8 +278,17 @@ fn plan_options(options: &SceneOptions, internal: &Internal) -> PlanOptions {
 struct Job {
     key: GeometryKey,
     method: Method,
-    /// The first primitive that needed it (`meshes[m].primitives[p]`), for messages.
-    path: String,
+    /// The first primitive that needed it, `[mesh, primitive]`, for messages.
+    first: [usize; 2],
+}
+
+impl Job {
+    /// Where the job's first primitive is, as messages name it. Made when needed rather than
+    /// kept: a scene may have a job per primitive.
+    fn path(&self) -> String {
+        let [mesh, primitive] = self.first;
+        format!("meshes[{mesh}].primitives[{primitive}]")
+    }
 }
 
 /// A scene's jobs, in the order primitives first need them, and the job each plan uses.
@@ -283,15 +311,17 @@ fn plan_jobs(plans: &[PrimitivePlan], method: Method) -> Jobs {
             Action::Audit => Method::MikkTSpace,
             _ => method,
         };
-        let path = format!("meshes[{}].primitives[{}]", plan.mesh, plan.primitive);
         let next = jobs.list.len();
         let job = *index.entry((key.clone(), method)).or_insert(next);
         if job == next {
             let key = key.clone();
-            jobs.list.push(Job { key, method, path });
+            let first = [plan.mesh, plan.primitive];
+            jobs.list.push(Job { key, method, first });
         }
         jobs.of_plan[p] = Some(job);
     }
+    // Kept to the end, beside one plan per primitive: no room to spare.
+    jobs.list.shrink_to_fit();
     jobs
 }
 
@@ -410,7 +440,7 @@ fn compute_jobs<'a>(
                 limits: &limits,
                 cancel: &options.cancel,
             };
-            compute::compute(root, &job.key, data, &run, &job.path)
+            compute::compute(root, &job.key, data, &run, &job.path())
         })
         .collect();
     results.into_iter().collect()
@@ -462,6 +492,10 @@ fn report_primitives(
     report: &mut Report,
 ) -> Result<Edits, SceneError> {
     let mut edits = Edits::default();
+    // Each job adds its accessors once: room for them all, rather than lists grown by doubling
+    // (capacity no job uses is never touched).
+    edits.job_refs.reserve_exact(jobs.list.len());
+    edits.changes.reserve(jobs.list.len(), plans.len());
     let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
     report.primitives.reserve_exact(plans.len());
     for (plan, &job) in plans.iter().zip(&jobs.of_plan) {
@@ -681,7 +715,7 @@ fn generate_primitive(
     let edit = edits.edit_primitive(scene, primitive, key.topology, job, c, snorm)?;
     entry.tangent = edits
         .job_refs
-        .get(&job)
+        .get(job)
         .and_then(|refs| refs.tangent)
         .map(|(_, quantized)| TangentReport::new(quantized));
     if !key.targets.is_empty() {
@@ -712,7 +746,7 @@ fn add_totals(report: &mut Report, computed: &[Computed], edits: &Edits) {
             d.duplicate_position_triangles.count + d.zero_area_triangles.count;
         summary.zero_uv_area_triangles += d.zero_uv_area_triangles.count;
         summary.mirrored_uv_triangles += d.mirrored_uv_triangles.count;
-        if edits.job_refs.contains_key(&j) {
+        if edits.job_refs.get(j).is_some_and(|refs| refs.written) {
             summary.vertices_added += d.vertices_added;
         }
     }
@@ -736,8 +770,8 @@ impl Output {
 /// The output, unless only analysing; what the writer found goes into the report.
 fn write_scene<'a>(
     bytes: &[u8],
-    loaded: &load::Loaded<'a>,
-    changes: &mut Changes,
+    loaded: load::Loaded<'a>,
+    changes: Changes,
     options: &SceneOptions,
     resources: &dyn Resources<'a>,
     report: &mut Report,
@@ -882,14 +916,14 @@ fn add_deltas(changes: &mut Changes, deltas: &[[f32; 3]], snorm: Option<Snorm>) 
     }
 }
 
-/// Each primitive's storage in and out, and the scene's mesh bytes, from the input's document and
-/// (when written) the output's, which is parsed again: the sizes are what the files declare.
+/// Each primitive's storage in and out, and the scene's mesh bytes, from the input's sizes and
+/// (when written) the output's document, which is parsed again: the sizes are what the files
+/// declare.
 fn report_storage(
     report: &mut Report,
-    root: &Node,
+    before: sizes::MeshSizes,
     output_json: Option<&[u8]>,
 ) -> Result<(), SceneError> {
-    let before = sizes::measure(root);
     let after = output_json.map(output_sizes).transpose()?;
     report.summary.mesh_bytes_in = before.total;
     report.summary.mesh_bytes_out = after.as_ref().map(|a| a.total);
@@ -960,15 +994,29 @@ struct JobRefs {
     color: Option<Ref>,
     normal: Option<Ref>,
     indices: Option<Ref>,
-    deltas: HashMap<usize, Ref>,
+    /// Per morph target that has them: its TANGENT deltas.
+    deltas: Vec<(usize, Ref)>,
+    /// Whether the job's accessors were written (an audit's are not).
+    written: bool,
+}
+
+/// Job `job`'s accessors, now counted as written. The list is reserved for every job up front
+/// and grows to `job` here, so that it never doubles.
+fn written_refs(list: &mut Vec<JobRefs>, job: usize) -> &mut JobRefs {
+    if list.len() <= job {
+        list.resize_with(job + 1, JobRefs::default);
+    }
+    let refs = &mut list[job];
+    refs.written = true;
+    refs
 }
 
 /// What the primitives' edits add to the scene, for the writer.
 #[derive(Default)]
 struct Edits {
     changes: Changes,
-    /// Per job that was written: its accessors.
-    job_refs: HashMap<usize, JobRefs>,
+    /// Per job (up to the last that was written): its accessors.
+    job_refs: Vec<JobRefs>,
     /// Per (job, input accessor): that accessor copied in the order of the job's split
     /// vertices, so primitives sharing a job also share the copies.
     remapped: HashMap<(usize, usize), Ref>,
@@ -992,7 +1040,7 @@ impl Edits {
         // Decoded accessors have no data in the file: the primitive's are all written anew.
         let keeps = c.keeps_vertices(topology) && !reads_decoded(primitive, scene.data.decoded);
         let painting = scene.painted.get(job).is_some();
-        let refs = self.job_refs.entry(job).or_default();
+        let refs = written_refs(&mut self.job_refs, job);
         let changes = &mut self.changes;
         let (tangent, _) = *refs
             .tangent
@@ -1024,6 +1072,8 @@ impl Edits {
             )?);
         }
         self.paint(scene, job, &mut edit);
+        // Kept until the scene is written, one per primitive: no room to spare.
+        edit.attributes.shrink_to_fit();
         Ok(edit)
     }
 
@@ -1075,7 +1125,7 @@ impl Edits {
         topology: Topology,
     ) {
         let split = &c.tangents.split;
-        let refs = self.job_refs.entry(job).or_default();
+        let refs = written_refs(&mut self.job_refs, job);
         let changes = &mut self.changes;
         if let Some(normals) = &c.tangents.normals {
             let r = *refs
@@ -1097,7 +1147,7 @@ impl Edits {
         let Some(painted) = scene.painted.get(job) else {
             return;
         };
-        let refs = self.job_refs.entry(job).or_default();
+        let refs = written_refs(&mut self.job_refs, job);
         let changes = &mut self.changes;
         let r = *refs
             .color
@@ -1116,7 +1166,7 @@ impl Edits {
         (t, target): (usize, &Node),
         keeps: bool,
         snorm: Option<Snorm>,
-    ) -> Result<Vec<(String, Ref)>, SceneError> {
+    ) -> Result<Vec<(Text, Ref)>, SceneError> {
         let delta = c.target_deltas.get(t).and_then(Option::as_ref);
         let mut set = Vec::new();
         if !keeps {
@@ -1127,11 +1177,15 @@ impl Edits {
         }
         if let Some(deltas) = delta {
             let changes = &mut self.changes;
-            let refs = self.job_refs.entry(job).or_default();
-            let r = *refs
-                .deltas
-                .entry(t)
-                .or_insert_with(|| add_deltas(changes, deltas, snorm));
+            let refs = written_refs(&mut self.job_refs, job);
+            let r = match refs.deltas.iter().find(|(target, _)| *target == t) {
+                Some(&(_, r)) => r,
+                None => {
+                    let r = add_deltas(changes, deltas, snorm);
+                    refs.deltas.push((t, r));
+                    r
+                }
+            };
             set.push(("TANGENT".into(), r));
         }
         Ok(set)
@@ -1146,7 +1200,7 @@ impl Edits {
         c: &Computed,
         object: Option<&Node>,
         skip: impl Fn(&str) -> bool,
-    ) -> Result<Vec<(String, Ref)>, SceneError> {
+    ) -> Result<Vec<(Text, Ref)>, SceneError> {
         let mut members = Vec::new();
         for member in object.and_then(Node::as_object).unwrap_or(&[]) {
             if skip(&member.key) {

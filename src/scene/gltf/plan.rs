@@ -382,7 +382,13 @@ fn plan_primitive(
 /// Decides every primitive of the document.
 pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
     let materials = array(root, "materials");
-    let mut plans = Vec::new();
+    // One plan per primitive, allocated once: growing by doubling would leave up to as much
+    // again unused, and the plans stay until the scene is written.
+    let count = array(root, "meshes")
+        .iter()
+        .map(|mesh| array(mesh, "primitives").len())
+        .sum();
+    let mut plans = Vec::with_capacity(count);
     for (mesh_index, mesh) in array(root, "meshes").iter().enumerate() {
         let mesh_name = mesh.get("name").and_then(Node::as_str).map(str::to_owned);
         for (index, primitive) in array(mesh, "primitives").iter().enumerate() {

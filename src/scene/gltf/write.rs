@@ -32,8 +32,8 @@ use crate::scene::report::{Dropped, Notice};
 use crate::scene::uri;
 use compress::{Encoded, Output, Prefiltered, Shape};
 use rayon::prelude::*;
-use std::collections::{BTreeMap, HashMap};
-use tspace_json::{self as json, Document, Editor, Node};
+use std::collections::HashMap;
+use tspace_json::{self as json, Document, Editor, Node, Text};
 
 /// An accessor in the output: one of the input's, or one this write adds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -67,16 +67,60 @@ struct NewAccessor {
 /// The changes to one primitive: members to set (attribute name → accessor), and so on.
 #[derive(Default)]
 pub struct PrimitiveEdit {
-    pub attributes: Vec<(String, Ref)>,
+    pub attributes: Vec<(Text, Ref)>,
     pub indices: Option<Ref>,
     /// Set `mode` to TRIANGLES (a strip or fan was unrolled).
     pub to_triangle_list: bool,
     /// Per morph target: members to set.
-    pub targets: Vec<Vec<(String, Ref)>>,
+    pub targets: Vec<Vec<(Text, Ref)>>,
     /// Remove `KHR_draco_mesh_compression`: its compressed data no longer matches.
     pub remove_draco: bool,
     /// Point `material` at this one of [`Changes::materials`].
     pub material: Option<usize>,
+}
+
+/// The edited primitives' edits by `(mesh, primitive)`, in that order: a list, since edits come
+/// in that order, without a map's room per entry (a scene may edit a hundred thousand).
+#[derive(Default)]
+pub struct PrimitiveEdits(Vec<((usize, usize), PrimitiveEdit)>);
+
+impl PrimitiveEdits {
+    fn position(&self, key: &(usize, usize)) -> Result<usize, usize> {
+        self.0.binary_search_by(|(k, _)| k.cmp(key))
+    }
+
+    pub fn get(&self, key: &(usize, usize)) -> Option<&PrimitiveEdit> {
+        let i = self.position(key).ok()?;
+        self.0.get(i).map(|(_, edit)| edit)
+    }
+
+    pub fn contains_key(&self, key: &(usize, usize)) -> bool {
+        self.position(key).is_ok()
+    }
+
+    /// Sets the edit of `key`, replacing any it had.
+    pub fn insert(&mut self, key: (usize, usize), edit: PrimitiveEdit) {
+        match self.position(&key) {
+            Ok(i) => {
+                if let Some(slot) = self.0.get_mut(i) {
+                    slot.1 = edit;
+                }
+            }
+            Err(i) => self.0.insert(i, (key, edit)),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    pub fn values(&self) -> impl Iterator<Item = &PrimitiveEdit> {
+        self.0.iter().map(|(_, edit)| edit)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (&(usize, usize), &PrimitiveEdit)> {
+        self.0.iter().map(|(key, edit)| (key, edit))
+    }
 }
 
 /// New accessors and views, and the changes to primitives, collected before anything is
@@ -85,7 +129,7 @@ pub struct PrimitiveEdit {
 pub struct Changes {
     views: Vec<NewView>,
     accessors: Vec<NewAccessor>,
-    pub primitives: BTreeMap<(usize, usize), PrimitiveEdit>,
+    pub primitives: PrimitiveEdits,
     /// Materials to append, as JSON text, in order.
     pub materials: Vec<String>,
     /// Extensions the added materials use: listed in `extensionsUsed` (not required: a viewer
@@ -94,6 +138,15 @@ pub struct Changes {
 }
 
 impl Changes {
+    /// Room for `views` more new views and accessors (one a job, for its tangents) and
+    /// `primitives` more edits, so that the lists are not grown by doubling (room no edit uses
+    /// is never touched).
+    pub fn reserve(&mut self, views: usize, primitives: usize) {
+        self.views.reserve_exact(views);
+        self.accessors.reserve_exact(views);
+        self.primitives.0.reserve_exact(primitives);
+    }
+
     fn push_view(
         &mut self,
         data: Vec<u8>,
@@ -466,15 +519,38 @@ fn sniff_image(bytes: &[u8]) -> Option<&'static str> {
 
 /// Writes the scene with `changes` applied: find what the edits leave unreferenced and whether
 /// it may go, gather the images a GLB must carry, lay out the one output buffer, edit the JSON
-/// to match it, and emit the container.
+/// to match it, and emit the container: as one vector, or with `pieces_of` (the input's bytes)
+/// as [`pieces::Pieces`] that take the new views' data over from `changes` and refer to the
+/// input where the output repeats it.
 pub fn write(
-    loaded: &Loaded<'_>,
-    changes: &mut Changes,
+    loaded: Loaded<'_>,
+    mut changes: Changes,
     format: OutputFormat,
     compression: Compression,
     resources: &dyn Resources<'_>,
     pieces_of: Option<&[u8]>,
 ) -> Result<Written, SceneError> {
+    let (json, layout, mut images, mut written) =
+        edit(&loaded, &changes, format, compression, resources)?;
+    match pieces_of {
+        Some(input) if format == OutputFormat::Glb => {
+            let pieces = emit_pieces(&loaded, &json, layout, (&mut changes, &mut images), input)?;
+            written.pieces = Some(pieces);
+        }
+        _ => written.bytes = emit(&loaded, &json, &layout, format, (&changes, &images))?,
+    }
+    Ok(written)
+}
+
+/// Everything [`write()`] does but emit the container: the edited JSON, the output buffer,
+/// and what the report needs to know (with no bytes yet).
+fn edit<'l>(
+    loaded: &'l Loaded<'_>,
+    changes: &Changes,
+    format: OutputFormat,
+    compression: Compression,
+    resources: &dyn Resources<'_>,
+) -> Result<(json::Rendered<'l>, Layout<'l>, Images, Written), SceneError> {
     let root = loaded.doc.root();
     let output = compress::resolve(compression, root);
     let mut warnings = Vec::new();
@@ -486,7 +562,7 @@ pub fn write(
     };
     let numbering = Numbering::new(&orphans, dropping);
     let buffers = BufferMap::new(&loaded.buffers);
-    let mut images = match format {
+    let images = match format {
         OutputFormat::Glb => embed_images(root, resources, &mut warnings),
         OutputFormat::GltfEmbedded => Images::default(),
     };
@@ -510,6 +586,8 @@ pub fn write(
     }
     append_buffer_views(&mut editor, root, changes, &images, &layout)?;
     renumber_accessor_refs(&mut editor, &references, &numbering, changes)?;
+    // One entry per index in the document: gone before the primitives' edits add theirs.
+    drop(references);
     let first_new_material = append_materials(&mut editor, root, changes)?;
     edit_primitives(
         &mut editor,
@@ -560,31 +638,21 @@ pub fn write(
             describe_compression(&compressed_views, layout.packed.as_ref()),
         ));
     }
-    let json_text = editor.render().map_err(edit_error)?;
-
-    let (bytes, pieces) = match pieces_of {
-        Some(input) if format == OutputFormat::Glb => {
-            let pieces = emit_pieces(loaded, &json_text, layout, (changes, &mut images), input)?;
-            (Vec::new(), Some(pieces))
-        }
-        _ => (
-            emit(loaded, json_text, &layout, format, (changes, &images))?,
-            None,
-        ),
-    };
+    let json = editor.into_rendered().map_err(edit_error)?;
     let dropped = Dropped {
         accessors: (numbering.accessor_map.len() - numbering.kept_accessors) as u64,
         buffer_views: (numbering.view_map.len() - numbering.kept_views) as u64,
         kept_because,
     };
-    Ok(Written {
-        bytes,
-        pieces,
+    let written = Written {
+        bytes: Vec::new(),
+        pieces: None,
         embedded_image_bytes: images.external_bytes,
         dropped,
         notices: warnings,
         compressed_views,
-    })
+    };
+    Ok((json, layout, images, written))
 }
 
 /// Every index reference to an accessor or a buffer view in the input, found once: the first
@@ -596,10 +664,12 @@ struct References<'d> {
 
 impl<'d> References<'d> {
     fn of(root: &'d Node) -> Self {
-        References {
-            accessors: refs::accessor_refs(root),
-            views: refs::view_refs(root),
-        }
+        // Exactly sized: a scene of many small primitives has several per primitive.
+        let mut accessors = refs::accessor_refs(root);
+        let mut views = refs::view_refs(root);
+        accessors.shrink_to_fit();
+        views.shrink_to_fit();
+        References { accessors, views }
     }
 }
 
@@ -1574,17 +1644,19 @@ fn merged_buffer(
     }
 }
 
-/// The container: a GLB (keeping the input GLB's chunks after BIN), or the `.gltf` JSON.
+/// The container: a GLB (keeping the input GLB's chunks after BIN), or the `.gltf` JSON. The
+/// edited JSON is written straight into it, never held as a text of its own besides.
 fn emit(
     loaded: &Loaded<'_>,
-    json_text: String,
+    json: &json::Rendered<'_>,
     layout: &Layout<'_>,
     format: OutputFormat,
     (changes, images): (&Changes, &Images),
 ) -> Result<Vec<u8>, SceneError> {
     match format {
-        OutputFormat::Glb => glb::write_pieces(
-            json_text.as_bytes(),
+        OutputFormat::Glb => glb::write_with(
+            json.len(),
+            |out| json.for_each_part(|part| out.extend_from_slice(part.as_bytes())),
             layout
                 .bin_needed
                 .then(|| layout.bin.slices(changes, images))
@@ -1596,7 +1668,11 @@ fn emit(
             },
         )
         .map_err(|e| SceneError::new(ProblemCode::OutputTooLarge, format!("the output {e}"))),
-        OutputFormat::GltfEmbedded => Ok(json_text.into_bytes()),
+        OutputFormat::GltfEmbedded => {
+            let mut out = Vec::with_capacity(json.len());
+            json.for_each_part(|part| out.extend_from_slice(part.as_bytes()));
+            Ok(out)
+        }
     }
 }
 
@@ -1605,7 +1681,7 @@ fn emit(
 /// for what lies in it (the kept views of a GLB's BIN chunk, the chunks after BIN).
 fn emit_pieces(
     loaded: &Loaded<'_>,
-    json_text: &str,
+    json: &json::Rendered<'_>,
     layout: Layout<'_>,
     (changes, images): (&mut Changes, &mut Images),
     input: &[u8],
@@ -1615,7 +1691,7 @@ fn emit_pieces(
     } else {
         &[]
     };
-    let mut lengths = vec![(glb::CHUNK_JSON, json_text.len())];
+    let mut lengths = vec![(glb::CHUNK_JSON, json.len())];
     if layout.bin_needed {
         lengths.push((glb::CHUNK_BIN, layout.bin.len()));
     }
@@ -1625,16 +1701,23 @@ fn emit_pieces(
     let mut chunks = framing.chunks.iter();
     let mut head = framing.header.to_vec();
     let json_at = match chunks.next() {
-        Some(json) => {
-            head.extend_from_slice(&json.header);
+        Some(chunk) => {
+            head.extend_from_slice(&chunk.header);
             let at = head.len();
-            head.extend_from_slice(json_text.as_bytes());
-            head.resize(head.len() + json.padding, json.pad_byte);
+            head.reserve(json.len() + chunk.padding);
+            json.for_each_part(|part| head.extend_from_slice(part.as_bytes()));
+            if head.len() - at != json.len() {
+                return Err(SceneError::new(
+                    ProblemCode::Internal,
+                    "the edited JSON's length was misjudged",
+                ));
+            }
+            head.resize(head.len() + chunk.padding, chunk.pad_byte);
             at
         }
         None => head.len(),
     };
-    let json_range = json_at..json_at + json_text.len();
+    let json_range = json_at..json_at + json.len();
     let bin_chunk = if layout.bin_needed {
         chunks.next()
     } else {
@@ -1695,7 +1778,7 @@ fn final_primitive_members(
 ) -> HashMap<(usize, usize), Vec<(String, Ref)>> {
     let mut out = HashMap::new();
     let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
-    for (&(m, p), edit) in &changes.primitives {
+    for (&(m, p), edit) in changes.primitives.iter() {
         let Some(primitive) = meshes
             .get(m)
             .and_then(|mesh| mesh.get("primitives"))
@@ -1705,7 +1788,7 @@ fn final_primitive_members(
         };
         let mut members = Vec::new();
         let merged = |original: Option<&Node>,
-                      set: &[(String, Ref)],
+                      set: &[(Text, Ref)],
                       prefix: &str,
                       members: &mut Vec<(String, Ref)>| {
             for member in original.and_then(Node::as_object).unwrap_or(&[]) {
@@ -1759,7 +1842,7 @@ fn apply_primitive_edit(
     let final_accessor = |r: Ref| numbering.accessor(r);
     let set_all = |editor: &mut Editor<'_, '_>,
                    object: &Node,
-                   set: &[(String, Ref)]|
+                   set: &[(Text, Ref)]|
      -> Result<(), SceneError> {
         for (key, r) in set {
             editor
