@@ -268,7 +268,7 @@ pub fn write(
     )
 }
 
-/// [`write`], with the BIN chunk given as the pieces it is made of, in order: each byte is
+/// [`write()`], with the BIN chunk given as the pieces it is made of, in order: each byte is
 /// copied once, into the file, however the chunk was laid out.
 pub fn write_pieces(
     json: &[u8],
