@@ -159,15 +159,7 @@ fn write_input(path: &Path, bytes: &[u8]) {
 }
 
 fn thousands(n: usize) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
+    tspace::scene::report::thousands(n as u64)
 }
 
 fn median(mut values: Vec<f64>) -> f64 {
