@@ -82,6 +82,11 @@ impl Pieces {
         })
     }
 
+    /// The pieces, in order (for a caller that sends them as they are).
+    pub fn into_parts(self) -> Vec<Part> {
+        self.parts
+    }
+
     /// The output as one vector (for callers that need it whole).
     pub fn to_vec(&self, input: &[u8]) -> Vec<u8> {
         let mut out = Vec::with_capacity(self.len);

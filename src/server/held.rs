@@ -8,6 +8,7 @@
 
 use axum::body::Bytes;
 use http_body::{Body, Frame, SizeHint};
+use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::future::Future;
 use std::pin::Pin;
@@ -17,14 +18,24 @@ use tokio::sync::OwnedSemaphorePermit;
 const FRAME: usize = 256 << 10;
 
 pub struct HeldBody {
-    rest: Bytes,
+    /// What is left to send, piece by piece (a scene written in pieces is sent as it lies:
+    /// slices of the upload and the new data, never put together in one buffer).
+    rest: VecDeque<Bytes>,
+    len: usize,
     permit: Option<OwnedSemaphorePermit>,
 }
 
 impl HeldBody {
     pub fn new(bytes: impl Into<Bytes>, permit: OwnedSemaphorePermit) -> Self {
+        HeldBody::from_parts(vec![bytes.into()], permit)
+    }
+
+    /// A body of these parts, in order.
+    pub fn from_parts(parts: Vec<Bytes>, permit: OwnedSemaphorePermit) -> Self {
+        let rest: VecDeque<Bytes> = parts.into_iter().filter(|p| !p.is_empty()).collect();
         HeldBody {
-            rest: bytes.into(),
+            len: rest.iter().map(Bytes::len).sum(),
+            rest,
             permit: Some(permit),
         }
     }
@@ -38,12 +49,16 @@ impl Body for HeldBody {
         mut self: Pin<&mut Self>,
         _: &mut Context<'_>,
     ) -> Poll<Option<Result<Frame<Bytes>, Infallible>>> {
-        if self.rest.is_empty() {
+        let Some(front) = self.rest.front_mut() else {
             self.permit = None;
             return Poll::Ready(None);
+        };
+        let n = front.len().min(FRAME);
+        let frame = front.split_to(n);
+        if front.is_empty() {
+            self.rest.pop_front();
         }
-        let n = self.rest.len().min(FRAME);
-        let frame = self.rest.split_to(n);
+        self.len -= frame.len();
         Poll::Ready(Some(Ok(Frame::data(frame))))
     }
 
@@ -52,7 +67,7 @@ impl Body for HeldBody {
     }
 
     fn size_hint(&self) -> SizeHint {
-        SizeHint::with_exact(self.rest.len() as u64)
+        SizeHint::with_exact(self.len as u64)
     }
 }
 
@@ -132,6 +147,29 @@ mod tests {
             frames += 1;
         }
         assert_eq!((sent, frames), (data, 3));
+        assert_eq!(permits.available_permits(), 1);
+    }
+
+    #[tokio::test]
+    async fn parts_are_sent_in_order_in_frames() {
+        let permits = Arc::new(Semaphore::new(1));
+        let first: Vec<u8> = (0..(FRAME + 3)).map(|i| i as u8).collect();
+        let parts = vec![
+            Bytes::from(first.clone()),
+            Bytes::new(),
+            Bytes::from_static(b"tail"),
+        ];
+        let mut body = HeldBody::from_parts(parts, permits.clone().try_acquire_owned().unwrap());
+        let total = first.len() + 4;
+        assert_eq!(body.size_hint().exact(), Some(total as u64));
+        let mut sent = Vec::new();
+        while let Some(frame) = body.frame().await {
+            sent.extend_from_slice(&frame.unwrap().into_data().unwrap());
+            assert_eq!(body.size_hint().exact(), Some((total - sent.len()) as u64));
+        }
+        let mut expected = first;
+        expected.extend_from_slice(b"tail");
+        assert_eq!(sent, expected);
         assert_eq!(permits.available_permits(), 1);
     }
 

@@ -14,6 +14,7 @@ use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::input::{self, InputKind};
 use crate::scene::options::Debug;
 use crate::scene::pictures;
+use crate::scene::pieces::Part;
 use crate::scene::report::Report;
 use crate::scene::uri::{PartSet, percent_decode};
 use crate::scene::{OutputFormat, Processed, SceneLimits, SceneOptions};
@@ -372,7 +373,7 @@ async fn run(
     upload: Upload,
     options: SceneOptions,
 ) -> Result<Processed, Problem> {
-    run_then(app, place, upload, options, Ok).await
+    run_then(app, place, upload, options, |processed, _| Ok(processed)).await
 }
 
 /// [`run`], then `then` on the worker with what it made (a picture drawn from the scene is
@@ -386,7 +387,7 @@ async fn run_then<T, F>(
 ) -> Result<T, Problem>
 where
     T: Send + 'static,
-    F: FnOnce(Processed) -> Result<T, Problem> + Send + 'static,
+    F: FnOnce(Processed, &Bytes) -> Result<T, Problem> + Send + 'static,
 {
     let _cancel_when_dropped = CancelWhenDropped(options.cancel.clone());
     let metrics_app = Arc::clone(app);
@@ -419,7 +420,7 @@ where
         };
         let summary = &processed.report.summary;
         let counted = (summary.triangles, summary.vertices_added);
-        then(processed).map(|made| (made, counted))
+        then(processed, &upload.main).map(|made| (made, counted))
     };
     let (made, (triangles, vertices_added)) = run_job(app, place, job).await??;
     app.metrics
@@ -535,8 +536,17 @@ pub async fn tangents(
         Ok(accepted) => accepted,
         Err(answer) => return Ok(*answer),
     };
-    let processed = run(&app, place, upload, scene_options(&app, &query, true)).await?;
-    let bytes = processed.bytes.unwrap_or_default();
+    // A raw answer is sent as the pieces the scene was written in: the upload's own bytes where
+    // the output repeats them, and the new data, never put together in one buffer.
+    let options = SceneOptions {
+        in_pieces: !multipart,
+        ..scene_options(&app, &query, true)
+    };
+    let (processed, parts) = run_then(&app, place, upload, options, |mut processed, main| {
+        let parts = answer_parts(&mut processed, main)?;
+        Ok((processed, parts))
+    })
+    .await?;
     let scene_type = match query.format {
         OutputFormat::Glb => "model/gltf-binary",
         OutputFormat::GltfEmbedded => "model/gltf+json",
@@ -550,6 +560,7 @@ pub async fn tangents(
             (OutputFormat::GltfEmbedded, Debug::Colors) => "scene.debug.gltf",
         };
         let report = processed.report.to_json_pretty();
+        let bytes = parts.first().cloned().unwrap_or_default();
         let mixed = mixed::report_and_scene(&report, &bytes, scene_type, file_name);
         let mut response = Response::new(Body::new(HeldBody::new(mixed.body, permit)));
         if let Ok(value) = HeaderValue::from_str(&mixed.content_type) {
@@ -557,7 +568,7 @@ pub async fn tangents(
         }
         return Ok(response);
     }
-    let mut response = Response::new(Body::new(HeldBody::new(bytes, permit)));
+    let mut response = Response::new(Body::new(HeldBody::from_parts(parts, permit)));
     let headers = response.headers_mut();
     let (name, value) = content_type(scene_type);
     headers.insert(name, value);
@@ -565,6 +576,28 @@ pub async fn tangents(
         headers.insert("x-tspace-report", value);
     }
     Ok(response)
+}
+
+/// The written scene as the parts of an answer: its pieces, the upload's own bytes sliced where
+/// the output repeats them (no copy), or the one vector it was written as.
+fn answer_parts(processed: &mut Processed, main: &Bytes) -> Result<Vec<Bytes>, Problem> {
+    let Some(pieces) = processed.pieces.take() else {
+        return Ok(vec![Bytes::from(
+            processed.bytes.take().unwrap_or_default(),
+        )]);
+    };
+    pieces
+        .into_parts()
+        .into_iter()
+        .map(|part| match part {
+            Part::Owned(bytes) => Ok(Bytes::from(bytes)),
+            Part::Input(range) if range.end <= main.len() => Ok(main.slice(range)),
+            Part::Input(range) => Err(Problem::new(
+                ProblemCode::Internal,
+                format!("the written scene refers to bytes {range:?} beyond the upload"),
+            )),
+        })
+        .collect()
 }
 
 /// Reports what `/v1/tangents` would do, without writing a scene.
@@ -665,7 +698,7 @@ pub async fn uv_layout(
         ..scene_options(&app, &scene_query, false)
     };
     let format = picture.format;
-    let drawn = run_then(&app, place, upload, options, move |processed| {
+    let drawn = run_then(&app, place, upload, options, move |processed, _| {
         pictures::draw(
             &pictures::Subject { file: &file },
             &processed.layouts,
