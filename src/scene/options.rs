@@ -533,15 +533,6 @@ impl Timings {
         }
         self.last = Some(now);
     }
-
-    /// The time of the step `name`, summed if it ran more than once.
-    pub fn of(&self, name: &str) -> std::time::Duration {
-        self.steps
-            .iter()
-            .filter(|(n, _)| *n == name)
-            .map(|(_, d)| *d)
-            .sum()
-    }
 }
 
 #[cfg(test)]

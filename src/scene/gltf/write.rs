@@ -987,7 +987,7 @@ pub fn unsupplied_images(root: &Node, resources: &dyn Resources<'_>) -> Vec<Noti
 /// of a second allocation its size (a fifth of the time outside the core on a 2M-triangle
 /// GLB).
 #[derive(Default)]
-struct Pieces<'s> {
+struct BinPieces<'s> {
     parts: Vec<Piece<'s>>,
     len: usize,
 }
@@ -1006,9 +1006,9 @@ enum Piece<'s> {
 /// Alignment padding, borrowed: no padding is longer.
 static ZEROS: [u8; 32] = [0; 32];
 
-impl<'s> Pieces<'s> {
-    fn owned(bytes: Vec<u8>) -> Pieces<'s> {
-        Pieces {
+impl<'s> BinPieces<'s> {
+    fn owned(bytes: Vec<u8>) -> BinPieces<'s> {
+        BinPieces {
             len: bytes.len(),
             parts: vec![Piece::Owned(bytes)],
         }
@@ -1069,7 +1069,7 @@ impl<'s> Pieces<'s> {
 
 /// The output buffer's bytes and where every view lies in it.
 struct Layout<'s> {
-    bin: Pieces<'s>,
+    bin: BinPieces<'s>,
     /// Per input view: its new byte offset, when its buffer has data.
     view_position: Vec<Option<usize>>,
     /// Per new view (the changes' own, then the images): its byte offset.
@@ -1094,7 +1094,7 @@ fn lay_out_buffer<'s>(
         .get("bufferViews")
         .and_then(Node::as_array)
         .unwrap_or(&[]);
-    let mut bin = Pieces::default();
+    let mut bin = BinPieces::default();
     let view_position = if numbering.dropping {
         copy_kept_views(&mut bin, old_views, buffers, numbering)?
     } else {
@@ -1132,7 +1132,7 @@ fn lay_out_buffer<'s>(
 
 /// Copies the kept views one by one, so that dropped ones leave no dead bytes.
 fn copy_kept_views<'s>(
-    bin: &mut Pieces<'s>,
+    bin: &mut BinPieces<'s>,
     old_views: &[Node],
     buffers: &BufferMap<'s>,
     numbering: &Numbering,
@@ -1166,7 +1166,7 @@ fn copy_kept_views<'s>(
 
 /// Copies every buffer with data whole, each on a 16-byte boundary; views move with theirs.
 fn copy_whole_buffers<'s>(
-    bin: &mut Pieces<'s>,
+    bin: &mut BinPieces<'s>,
     old_views: &[Node],
     buffers: &BufferMap<'s>,
 ) -> Vec<Option<usize>> {
@@ -1676,7 +1676,7 @@ fn emit(
     }
 }
 
-/// The GLB as [`Pieces`]: its framing and JSON, then the BIN chunk's pieces, the new views' and
+/// The GLB as [`pieces::Pieces`]: its framing and JSON, then the BIN chunk's pieces, the new views' and
 /// images' data moved out of `changes` and `images` rather than copied, and ranges of `input`
 /// for what lies in it (the kept views of a GLB's BIN chunk, the chunks after BIN).
 fn emit_pieces(
@@ -2352,7 +2352,7 @@ fn lay_out_packed(
         bin.push(0);
     }
     Ok(Layout {
-        bin: Pieces::owned(bin),
+        bin: BinPieces::owned(bin),
         view_position: Vec::new(),
         new_view_offsets,
         bin_needed,
