@@ -465,6 +465,80 @@ fn a_split_remaps_every_attribute_and_renumbers_every_reference() {
     assert_eq!(&w[3..], &[-w[0]; 3]);
 }
 
+/// A bent sheet of two triangles without normals, each triangle with three vertices of its
+/// own (a triangle soup), numbered by `indices`.
+fn soup_without_normals(indices: &[u16]) -> (Vec<u8>, [usize; 3]) {
+    let mut b = Builder::default();
+    let positions = [
+        0., 0., 0., 1., 0., 0., 1., 1., 0., 0., 0., 0., 1., 1., 0., 0., 1., 1.,
+    ];
+    let uvs = [0., 0., 1., 0., 1., 1., 0., 0., 1., 1., 0., 1.];
+    let position = b.floats(&positions, "VEC3", true);
+    let uv = b.floats(&uvs, "VEC2", false);
+    let index = b.indices(indices);
+    let mut doc = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position, "TEXCOORD_0": uv},
+            "indices": index, "material": 0}]}],
+        "materials": normal_mapped(0),
+    });
+    texture_stub(&mut doc);
+    (b.glb(doc), [position, uv, index])
+}
+
+#[test]
+fn generated_normals_keep_the_input_vertices_when_nothing_splits() {
+    // Flat normals give a triangle soup's vertices one normal each: nothing splits, so the
+    // input's accessors stay as they are and only NORMAL and TANGENT are added.
+    let (input, [position, uv, index]) = soup_without_normals(&[0, 1, 2, 3, 4, 5]);
+    let done = process_glb(&input, SceneOptions::default());
+    assert_eq!(done.report.primitives[0].action, "generated");
+    assert_eq!(done.report.summary.vertices_added, 0);
+    assert_eq!(
+        done.report.dropped.accessors, 0,
+        "{:?}",
+        done.report.dropped
+    );
+    let kept = done.bytes.unwrap();
+    assert_valid("soup.glb", &kept);
+    let json = glb_json(&kept);
+    let primitive = &json["meshes"][0]["primitives"][0];
+    assert_eq!(primitive["attributes"]["POSITION"], position);
+    assert_eq!(primitive["attributes"]["TEXCOORD_0"], uv);
+    assert_eq!(primitive["indices"], index);
+    let normal = primitive["attributes"]["NORMAL"].as_u64().unwrap() as usize;
+    // The second triangle's face normal is (1, -1, 1) / √3.
+    let s = 1.0 / 3f32.sqrt();
+    let expected = [
+        [0., 0., 1.],
+        [0., 0., 1.],
+        [0., 0., 1.],
+        [s, -s, s],
+        [s, -s, s],
+        [s, -s, s],
+    ];
+    let normals = read_accessor_f32(&kept, normal);
+    assert_eq!(normals.len(), 18);
+    for (got, want) in normals.iter().zip(expected.concat()) {
+        assert!((got - want).abs() < 1e-6, "{normals:?}");
+    }
+
+    // Numbered in another order than the corners first use the vertices, the soup is written
+    // anew in that order; every corner still gets the same tangent.
+    let rotated = [1u16, 2, 0, 4, 5, 3];
+    let (input, _) = soup_without_normals(&rotated);
+    let rewritten = process_glb(&input, SceneOptions::default()).bytes.unwrap();
+    assert_valid("soup-renumbered.glb", &rewritten);
+    let json = glb_json(&rewritten);
+    assert_ne!(
+        json["meshes"][0]["primitives"][0]["attributes"]["POSITION"],
+        position
+    );
+    let by_vertex = &corner_tangents(&kept)[0];
+    let expected: Vec<[f32; 4]> = rotated.iter().map(|&v| by_vertex[v as usize]).collect();
+    assert_eq!(corner_tangents(&rewritten)[0], expected);
+}
+
 #[test]
 fn primitives_sharing_accessors_are_computed_once() {
     let mut b = Builder::default();
