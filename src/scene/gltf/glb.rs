@@ -21,7 +21,7 @@ pub const CHUNK_JSON: u32 = 0x4E4F_534A;
 pub const CHUNK_BIN: u32 = 0x004E_4942;
 
 const HEADER_LEN: usize = 12;
-const CHUNK_HEADER_LEN: usize = 8;
+pub const CHUNK_HEADER_LEN: usize = 8;
 
 /// A parsed GLB, borrowing the input.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -493,9 +493,19 @@ fn report_primitives(
 ) -> Result<Edits, SceneError> {
     let mut edits = Edits::default();
     // Each job adds its accessors once: room for them all, rather than lists grown by doubling
-    // (capacity no job uses is never touched).
+    // (capacity no job uses is never touched). A job writes its tangents, and its generated
+    // normals and debug colours when it has them; only remapped attributes are left to grow
+    // the lists.
     edits.job_refs.reserve_exact(jobs.list.len());
-    edits.changes.reserve(jobs.list.len(), plans.len());
+    let added: usize = computed
+        .iter()
+        .enumerate()
+        .map(|(j, c)| {
+            1 + usize::from(c.tangents.normals.is_some())
+                + usize::from(scene.painted.get(j).is_some())
+        })
+        .sum();
+    edits.changes.reserve(added, plans.len());
     let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
     report.primitives.reserve_exact(plans.len());
     for (plan, &job) in plans.iter().zip(&jobs.of_plan) {

@@ -138,7 +138,7 @@ pub struct Changes {
 }
 
 impl Changes {
-    /// Room for `views` more new views and accessors (one a job, for its tangents) and
+    /// Room for `views` more new views and accessors (one for each the jobs add) and
     /// `primitives` more edits, so that the lists are not grown by doubling (room no edit uses
     /// is never touched).
     pub fn reserve(&mut self, views: usize, primitives: usize) {
@@ -1704,7 +1704,9 @@ fn emit_pieces(
         Some(chunk) => {
             head.extend_from_slice(&chunk.header);
             let at = head.len();
-            head.reserve(json.len() + chunk.padding);
+            // The BIN chunk's header follows: room for it too, or its eight bytes would double
+            // a buffer the size of the JSON.
+            head.reserve_exact(json.len() + chunk.padding + glb::CHUNK_HEADER_LEN);
             json.for_each_part(|part| head.extend_from_slice(part.as_bytes()));
             if head.len() - at != json.len() {
                 return Err(SceneError::new(
