@@ -5,7 +5,8 @@
 //!
 //! `cargo bench --bench whole_path`. Scenes: a generated UV sphere of 2M triangles (56 MB GLB),
 //! the JSON-heavy scene of 50,000 one-triangle primitives with their own accessors (35.7 MB,
-//! `tspace_testkit::json_heavy`), the corpus's DamagedHelmet when `../shared/corpus` is present.
+//! `tspace_testkit::json_heavy`) and the same without NORMAL (27.3 MB), the corpus's
+//! DamagedHelmet when `../shared/corpus` is present.
 //! Settings:
 //! - `TSPACE_BENCH_QUICK=1`: a 200k sphere and few samples (a smoke test of the bench itself);
 //! - `TSPACE_BENCH_SECONDS` (default 5): how long each HTTP load level runs;
@@ -119,14 +120,24 @@ fn sphere(dir: &Path, quick: bool) -> Scene {
     }
 }
 
-/// The JSON-heavy scene: one-triangle primitives, each with its own accessors.
-fn json_heavy(dir: &Path, quick: bool) -> Scene {
+/// The JSON-heavy scene: one-triangle primitives, each with its own accessors; without
+/// NORMAL, tspace also writes a generated NORMAL per primitive. The cores run on the scene with
+/// normals either way (bevy_mikktspace needs them).
+fn json_heavy(dir: &Path, quick: bool, normals: bool) -> Scene {
     let primitives = if quick { 5_000 } else { 50_000 };
-    let bytes = tspace_testkit::json_heavy::json_heavy(primitives);
-    let file = dir.join("json-heavy.glb");
+    let with_normals = tspace_testkit::json_heavy::json_heavy(primitives);
+    let (bytes, file, name) = if normals {
+        let name = format!("JSON-heavy {}", thousands(primitives));
+        (with_normals.clone(), dir.join("json-heavy.glb"), name)
+    } else {
+        let bytes = tspace_testkit::json_heavy::json_heavy_without_normals(primitives);
+        let name = format!("JSON-heavy without normals {}", thousands(primitives));
+        (bytes, dir.join("json-heavy-without-normals.glb"), name)
+    };
+    let geometry = dir.join("json-heavy-geometry.glb");
+    write_input(&geometry, &with_normals);
     write_input(&file, &bytes);
-    let name = format!("JSON-heavy {}", thousands(primitives));
-    let mesh = corpus::load(&name, &file).expect("the JSON-heavy scene reads back");
+    let mesh = corpus::load(&name, &geometry).expect("the JSON-heavy scene reads back");
     Scene {
         name,
         file,
@@ -485,7 +496,27 @@ fn in_process_p50(bytes: &Arc<Vec<u8>>, clients: usize, workers: usize, seconds:
     )
 }
 
-/// p50 latency of `POST /v1/tangents` with `clients` concurrent clients for `seconds`.
+/// An HTTP server on the same stack as the service (axum on hyper, in this runtime) whose one
+/// route sends the upload straight back: what moving the scene up and down costs with no work.
+async fn start_echo() -> String {
+    let app = axum::Router::new()
+        .route(
+            "/echo",
+            axum::routing::post(|body: bytes::Bytes| async move {
+                ([("content-type", "model/gltf-binary")], body)
+            }),
+        )
+        .layer(axum::extract::DefaultBodyLimit::max(256 << 20));
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("a loopback port");
+    let addr = listener.local_addr().expect("its address");
+    tokio::spawn(async move { axum::serve(listener, app).await });
+    format!("http://{addr}/echo")
+}
+
+/// p50 latency of a POST of the scene to `url` with `clients` concurrent clients for
+/// `seconds`.
 async fn http_p50(url: &str, bytes: &bytes::Bytes, clients: usize, seconds: u64) -> f64 {
     let deadline = Instant::now() + Duration::from_secs(seconds);
     let tasks: Vec<_> = (0..clients)
@@ -542,6 +573,7 @@ fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
             .await
             .expect("server starts");
         let url = format!("http://{}/v1/tangents", running.addr);
+        let echo_url = start_echo().await;
         let body = bytes::Bytes::from(scene.bytes.clone());
         for clients in [1, 8] {
             let direct = {
@@ -553,6 +585,7 @@ fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
                 .await
                 .expect("in-process callers")
             };
+            let echo = http_p50(&echo_url, &body, clients, config.http_seconds).await;
             let http = http_p50(&url, &body, clients, config.http_seconds).await;
             let ratio = http / direct;
             println!(
@@ -561,11 +594,24 @@ fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
                 direct * 1e3,
                 verdict(ratio <= TARGET_HTTP_OVER_IN_PROCESS)
             );
+            // The floor: the same bytes up and back through the same stack with no work. The
+            // service cannot answer faster than the echo plus the work itself.
+            println!(
+                "      echo of the same upload {:>7.2} ms; HTTP over (in process + echo) {:.2}; HTTP's cost beyond the echo and the work {:>6.2} ms",
+                echo * 1e3,
+                http / (direct + echo),
+                (http - direct - echo) * 1e3,
+            );
             csv.push_str(&format!(
                 "http {} {clients} clients,,,{:.3},,{:.3},,,,,,{ratio:.3},\n",
                 scene.name,
                 http * 1e3,
                 direct * 1e3
+            ));
+            csv.push_str(&format!(
+                "echo {} {clients} clients,,,{:.3},,,,,,,,,\n",
+                scene.name,
+                echo * 1e3,
             ));
         }
         running.shutdown().await.expect("shuts down");
@@ -582,7 +628,10 @@ fn main() {
         scenes.push(sphere(&dir, config.quick));
     }
     if wanted("JSON-heavy") {
-        scenes.push(json_heavy(&dir, config.quick));
+        scenes.push(json_heavy(&dir, config.quick, true));
+    }
+    if wanted("JSON-heavy without normals") {
+        scenes.push(json_heavy(&dir, config.quick, false));
     }
     if wanted("DamagedHelmet") {
         match helmet(&dir) {
