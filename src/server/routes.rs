@@ -536,10 +536,10 @@ pub async fn tangents(
         Ok(accepted) => accepted,
         Err(answer) => return Ok(*answer),
     };
-    // A raw answer is sent as the pieces the scene was written in: the upload's own bytes where
+    // The answer is sent as the pieces the scene was written in: the upload's own bytes where
     // the output repeats them, and the new data, never put together in one buffer.
     let options = SceneOptions {
-        in_pieces: !multipart,
+        in_pieces: true,
         ..scene_options(&app, &query, true)
     };
     let (processed, parts) = run_then(&app, place, upload, options, |mut processed, main| {
@@ -560,9 +560,8 @@ pub async fn tangents(
             (OutputFormat::GltfEmbedded, Debug::Colors) => "scene.debug.gltf",
         };
         let report = processed.report.to_json_pretty();
-        let bytes = parts.first().cloned().unwrap_or_default();
-        let mixed = mixed::report_and_scene(&report, &bytes, scene_type, file_name);
-        let mut response = Response::new(Body::new(HeldBody::new(mixed.body, permit)));
+        let mixed = mixed::report_and_scene(&report, parts, scene_type, file_name);
+        let mut response = Response::new(Body::new(HeldBody::from_parts(mixed.parts, permit)));
         if let Ok(value) = HeaderValue::from_str(&mixed.content_type) {
             response.headers_mut().insert(header::CONTENT_TYPE, value);
         }
