@@ -55,8 +55,8 @@ pub(super) fn report_and_scene(
 
 /// A boundary that occurs in none of `pieces`, in time linear in their length. The report is
 /// the first piece and the scene the rest: the scene's pieces are one text, so an occurrence
-/// may straddle the seam between two of them (the report's seam with the scene is searched too,
-/// which can only block a suffix no occurrence needed).
+/// may straddle the seam between two of them. (The report's seam with the scene is searched
+/// too; at worst that moves the boundary off the stem for nothing.)
 fn boundary_for(pieces: &[&[u8]]) -> String {
     let stem = STEM.as_bytes();
     let mut blocked: HashSet<Vec<u8>> = HashSet::new();
