@@ -70,8 +70,9 @@ impl Computed<'_> {
     /// True when the primitive's vertices, indices and mode can stay as they are: nothing was
     /// split and no strip or fan had to be unrolled. Generated normals number the vertices in
     /// the order the corners first use them, so with those the numbering must also turn out to
-    /// be the input's own (a triangle soup's, or any mesh whose vertices no two faces share):
-    /// then the input's accessors are kept and only NORMAL and TANGENT are added.
+    /// be the input's own (a triangle soup's, or a mesh whose vertices no two differently
+    /// facing triangles share): then the input's accessors are kept and only NORMAL and
+    /// TANGENT are added.
     pub fn keeps_vertices(&self, topology: Topology) -> bool {
         let source = &self.tangents.split.source_vertex;
         topology == Topology::Triangles

@@ -138,7 +138,7 @@ pub struct Changes {
 }
 
 impl Changes {
-    /// Room for `views` more new views and accessors (one for each the jobs add) and
+    /// Room for `views` more new views and accessors (as many as the jobs add) and
     /// `primitives` more edits, so that the lists are not grown by doubling (room no edit uses
     /// is never touched).
     pub fn reserve(&mut self, views: usize, primitives: usize) {
