@@ -421,32 +421,9 @@ pub struct Document<'a> {
 impl<'a> Document<'a> {
     /// Parses `bytes` as one JSON text (see the module documentation for the exact rules).
     pub fn parse(bytes: &'a [u8]) -> Result<Self, ParseError> {
-        let source = std::str::from_utf8(bytes).map_err(|e| {
-            let at = e.valid_up_to();
-            // The prefix before the bad byte is valid, so positions can be reported in it.
-            let valid = bytes.get(..at).and_then(|b| std::str::from_utf8(b).ok());
-            ParseError::new(valid.unwrap_or(""), at, ParseErrorKind::InvalidUtf8)
-        })?;
-        if u32::try_from(bytes.len()).is_err() {
-            return Err(ParseError::new(
-                "",
-                0,
-                ParseErrorKind::TooLong {
-                    limit: u32::MAX as usize,
-                },
-            ));
-        }
+        let source = checked_source(bytes)?;
         let body_start = if bytes.starts_with(BOM) { BOM.len() } else { 0 };
-        let mut parser = Parser {
-            text: source,
-            bytes,
-            pos: body_start,
-            depth: 0,
-            elements: Vec::new(),
-            members: Vec::new(),
-            key_starts: Vec::new(),
-        };
-        let root = parser
+        let root = Parser::new(source, body_start, None)
             .document()
             .map_err(|(at, kind)| ParseError::new(source, at, kind))?;
         Ok(Document {
@@ -647,6 +624,56 @@ impl fmt::Display for ParseError {
 
 impl std::error::Error for ParseError {}
 
+/// The text of `bytes`, when it is UTF-8 and short enough for 32-bit offsets.
+fn checked_source(bytes: &[u8]) -> Result<&str, ParseError> {
+    let source = std::str::from_utf8(bytes).map_err(|e| {
+        let at = e.valid_up_to();
+        // The prefix before the bad byte is valid, so positions can be reported in it.
+        let valid = bytes.get(..at).and_then(|b| std::str::from_utf8(b).ok());
+        ParseError::new(valid.unwrap_or(""), at, ParseErrorKind::InvalidUtf8)
+    })?;
+    if u32::try_from(bytes.len()).is_err() {
+        return Err(ParseError::new(
+            "",
+            0,
+            ParseErrorKind::TooLong {
+                limit: u32::MAX as usize,
+            },
+        ));
+    }
+    Ok(source)
+}
+
+/// Which object members a pruned parse keeps: called with the keys of the objects that enclose
+/// the member, outermost first (arrays leave no step), and the member's own key.
+pub type Keep<'k> = &'k dyn Fn(&[Text], &str) -> bool;
+
+/// Parses `bytes` as [`Document::parse`] does, checking the whole text by the same rules
+/// (duplicate keys included), but keeps only the object members `keep` accepts, and returns
+/// the tree alone. For reading a few members of a large document: what is not kept is freed
+/// as soon as it is read, so the tree takes a fraction of a whole one. There is no editor for
+/// it, since its objects do not hold all their members.
+///
+/// ```
+/// let text = br#"{"accessors": [{"bufferView": 0, "max": [1, 2, 3], "min": [0, 0, 0]}], "asset": {}}"#;
+/// let root = tspace_json::parse_pruned(text, &|path, key| match path {
+///     [] => key == "accessors",
+///     [_] => key == "bufferView",
+///     _ => false,
+/// })?;
+/// let accessor = &root.get("accessors").unwrap().as_array().unwrap()[0];
+/// assert_eq!(accessor.get("bufferView").and_then(|v| v.as_u64()), Some(0));
+/// assert!(accessor.get("max").is_none() && root.get("asset").is_none());
+/// # Ok::<(), tspace_json::ParseError>(())
+/// ```
+pub fn parse_pruned(bytes: &[u8], keep: Keep<'_>) -> Result<Node, ParseError> {
+    let source = checked_source(bytes)?;
+    let body_start = if bytes.starts_with(BOM) { BOM.len() } else { 0 };
+    Parser::new(source, body_start, Some(keep))
+        .document()
+        .map_err(|(at, kind)| ParseError::new(source, at, kind))
+}
+
 type Fail = (usize, ParseErrorKind);
 
 struct Parser<'a> {
@@ -662,9 +689,30 @@ struct Parser<'a> {
     members: Vec<Member>,
     /// and where each of their keys starts, for duplicate-key errors.
     key_starts: Vec<usize>,
+    /// For a pruned parse: which members to keep,
+    keep: Option<Keep<'a>>,
+    /// the keys of the objects being read, outermost first,
+    path: Vec<Text>,
+    /// and the members left out, with where their keys start, for the duplicate-key check.
+    left_out: Vec<(Text, usize)>,
 }
 
-impl Parser<'_> {
+impl<'a> Parser<'a> {
+    fn new(text: &'a str, body_start: usize, keep: Option<Keep<'a>>) -> Self {
+        Parser {
+            text,
+            bytes: text.as_bytes(),
+            pos: body_start,
+            depth: 0,
+            elements: Vec::new(),
+            members: Vec::new(),
+            key_starts: Vec::new(),
+            keep,
+            path: Vec::new(),
+            left_out: Vec::new(),
+        }
+    }
+
     fn document(&mut self) -> Result<Node, Fail> {
         self.skip_ws();
         let root = self.value()?;
@@ -786,6 +834,7 @@ impl Parser<'_> {
         self.enter()?;
         self.pos += 1; // '{'
         let base = self.members.len();
+        let left_out_base = self.left_out.len();
         self.skip_ws();
         if self.peek() == Some(b'}') {
             self.pos += 1;
@@ -804,9 +853,26 @@ impl Parser<'_> {
             }
             self.pos += 1;
             self.skip_ws();
-            let value = self.value()?;
-            self.members.push(Member { key, value });
-            self.key_starts.push(key_start);
+            match self.keep {
+                None => {
+                    let value = self.value()?;
+                    self.members.push(Member { key, value });
+                    self.key_starts.push(key_start);
+                }
+                Some(keep) => {
+                    let kept = keep(&self.path, &key);
+                    self.path.push(key.clone());
+                    // A member left out is still read whole, to check it, and freed at once.
+                    let value = self.value()?;
+                    self.path.pop();
+                    if kept {
+                        self.members.push(Member { key, value });
+                        self.key_starts.push(key_start);
+                    } else {
+                        self.left_out.push((key, key_start));
+                    }
+                }
+            }
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -821,8 +887,18 @@ impl Parser<'_> {
                     self.depth -= 1;
                     let members = self.members.get(base..).unwrap_or(&[]);
                     let starts = self.key_starts.get(base..).unwrap_or(&[]);
-                    check_unique_keys(members, starts)?;
+                    let left_out = self.left_out.get(left_out_base..).unwrap_or(&[]);
+                    if members.len() + left_out.len() > 1 {
+                        let mut keys: Vec<(&str, usize)> = members
+                            .iter()
+                            .map(|m| m.key.as_str())
+                            .zip(starts.iter().copied())
+                            .chain(left_out.iter().map(|(key, start)| (key.as_str(), *start)))
+                            .collect();
+                        check_unique_keys(&mut keys)?;
+                    }
                     self.key_starts.truncate(base);
+                    self.left_out.truncate(left_out_base);
                     return Ok(Kind::Object(self.members.drain(base..).collect()));
                 }
                 _ => return Err(self.unexpected("',' or '}'")),
@@ -987,27 +1063,22 @@ impl Parser<'_> {
 
 /// Sorting beats hashing here: no hasher to seed against hostile keys, and no borrow of the
 /// member list while it is built. `starts` holds where each member's key starts.
-fn check_unique_keys(members: &[Member], starts: &[usize]) -> Result<(), Fail> {
-    if members.len() < 2 {
-        return Ok(());
-    }
-    let start = |i: usize| starts.get(i).copied().unwrap_or(0);
-    let key = |i: usize| members.get(i).map_or("", |m| m.key.as_str());
-    let mut sorted: Vec<usize> = (0..members.len()).collect();
-    sorted.sort_by(|&a, &b| key(a).cmp(key(b)).then(start(a).cmp(&start(b))));
+/// Fails on the first repeated key in the text, given each key with where it starts.
+fn check_unique_keys(keys: &mut [(&str, usize)]) -> Result<(), Fail> {
+    keys.sort_unstable();
     // Of all the repeats, report the one that comes first in the text.
-    let repeat = sorted
+    let repeat = keys
         .windows(2)
         .filter_map(|pair| match pair {
-            [a, b] if key(*a) == key(*b) => Some(*b),
+            [(a, _), (b, start)] if a == b => Some((*b, *start)),
             _ => None,
         })
-        .min_by_key(|&m| start(m));
+        .min_by_key(|&(_, start)| start);
     match repeat {
-        Some(m) => Err((
-            start(m),
+        Some((key, start)) => Err((
+            start,
             ParseErrorKind::DuplicateKey {
-                key: key(m).to_owned(),
+                key: key.to_owned(),
             },
         )),
         None => Ok(()),
@@ -2330,6 +2401,90 @@ mod tests {
                     prop_assert!(Document::parse(out.as_bytes()).is_ok(), "{:?} -> {:?}", text, out);
                 }
             }
+        }
+
+        #[test]
+        fn a_pruned_parse_is_the_whole_parse_with_members_left_out(
+            parts in proptest::collection::vec(
+                prop::sample::select(vec![
+                    "{", "}", "[", "]", ",", ":", " ", "\"a\"", "\"b\"", "\"c\"", "1", "0",
+                    "true", "null", "\"",
+                ]),
+                0..64,
+            )
+        ) {
+            let text: String = parts.concat();
+            let keep: Keep<'_> = &keep_a_and_b_under_a;
+            match (Document::parse(text.as_bytes()), parse_pruned(text.as_bytes(), keep)) {
+                (Ok(doc), Ok(pruned)) => {
+                    prop_assert_eq!(pruned, pruned_copy(doc.root(), keep, &mut Vec::new()));
+                }
+                (Err(whole), Err(pruned)) => prop_assert_eq!(whole, pruned),
+                (whole, pruned) => prop_assert!(false, "{:?}: {:?} against {:?}", text, whole.err(), pruned.err()),
+            }
+        }
+    }
+
+    /// Keeps `a` anywhere and `b` only inside an `a`.
+    fn keep_a_and_b_under_a(path: &[Text], key: &str) -> bool {
+        key == "a" || (key == "b" && path.last().is_some_and(|k| k.as_str() == "a"))
+    }
+
+    /// `node` with the members `keep` refuses taken out, as a pruned parse should give it.
+    fn pruned_copy(node: &Node, keep: Keep<'_>, path: &mut Vec<Text>) -> Node {
+        let kind = match &node.kind {
+            Kind::Array(elements) => Kind::Array(
+                elements
+                    .iter()
+                    .map(|e| pruned_copy(e, keep, path))
+                    .collect(),
+            ),
+            Kind::Object(members) => {
+                let mut kept = Vec::new();
+                for m in members.iter() {
+                    if keep(path, &m.key) {
+                        path.push(m.key.clone());
+                        let value = pruned_copy(&m.value, keep, path);
+                        path.pop();
+                        kept.push(Member {
+                            key: m.key.clone(),
+                            value,
+                        });
+                    }
+                }
+                Kind::Object(kept.into())
+            }
+            other => other.clone(),
+        };
+        Node { kind, ..*node }
+    }
+
+    #[test]
+    fn a_pruned_parse_keeps_what_it_is_asked_for_and_checks_the_rest() {
+        let keep: Keep<'_> = &keep_a_and_b_under_a;
+        let text = br#"{"a": {"b": [1, {"a": 2, "b": 3}], "c": 4}, "b": {"a": 5}}"#;
+        let root = parse_pruned(text, keep).unwrap();
+        let a = root.get("a").unwrap();
+        assert_eq!(a.get("b").unwrap().span(), 12..33);
+        assert!(a.get("c").is_none() && root.get("b").is_none());
+        let inner = a.get("b").unwrap().index(1).unwrap();
+        assert_eq!(inner.get("a").and_then(Node::as_u64), Some(2));
+        assert!(
+            inner.get("b").is_none(),
+            "a b under an array under b is not under an a"
+        );
+        // Errors inside members left out, and keys repeated among them, are still errors.
+        for bad in [
+            r#"{"c": [1,]}"#,
+            r#"{"c": 1, "c": 2}"#,
+            r#"{"a": 1, "c": 2, "a": 3}"#,
+            r#"{"c": {"d": 1, "d": 2}}"#,
+        ] {
+            assert_eq!(
+                parse_pruned(bad.as_bytes(), keep).unwrap_err(),
+                parse(bad).unwrap_err(),
+                "{bad}"
+            );
         }
     }
 }

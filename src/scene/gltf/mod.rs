@@ -968,13 +968,15 @@ fn output_json(bytes: &[u8], format: OutputFormat) -> Result<&[u8], SceneError> 
 }
 
 fn output_sizes(json: &[u8]) -> Result<sizes::MeshSizes, SceneError> {
-    let doc = tspace_json::Document::parse(json).map_err(|e| {
+    // Only what measuring reads: the whole tree of the output, beside the output itself and the
+    // report, would be this step's peak.
+    let root = tspace_json::parse_pruned(json, &sizes::read_by_measure).map_err(|e| {
         SceneError::new(
             ProblemCode::Internal,
             format!("tspace's own output does not parse again: {e}"),
         )
     })?;
-    Ok(sizes::measure(doc.root()))
+    Ok(sizes::measure(&root))
 }
 
 fn why_storage_changed(

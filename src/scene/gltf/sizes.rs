@@ -8,7 +8,7 @@
 
 use super::draco;
 use std::collections::{BTreeMap, BTreeSet};
-use tspace_json::Node;
+use tspace_json::{Node, Text};
 
 /// How a primitive's geometry is stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -71,6 +71,35 @@ pub fn measure(root: &Node) -> MeshSizes {
     }
     sizes.total = all_views.iter().map(|&v| view_bytes(views.get(v))).sum();
     sizes
+}
+
+/// The members [`measure`] reads, for [`tspace_json::parse_pruned`]: a document read only to be
+/// measured (tspace's own output) then takes a fraction of its whole tree.
+pub fn read_by_measure(path: &[Text], key: &str) -> bool {
+    const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
+    let mut steps = [""; 4];
+    for (step, text) in steps.iter_mut().zip(path) {
+        *step = text;
+    }
+    match (path.len(), steps) {
+        (0, _) => matches!(key, "meshes" | "accessors" | "bufferViews"),
+        (1, ["meshes", ..]) => key == "primitives",
+        (2, ["meshes", "primitives", ..]) => {
+            matches!(key, "attributes" | "targets" | "indices" | "extensions")
+        }
+        (3, ["meshes", "primitives", "attributes" | "targets", _]) => true,
+        (3, ["meshes", "primitives", "extensions", _]) => key == draco::EXTENSION,
+        (4, ["meshes", "primitives", "extensions", draco::EXTENSION]) => key == "bufferView",
+        (1, ["accessors", ..]) => matches!(key, "bufferView" | "sparse"),
+        (2, ["accessors", "sparse", ..]) => matches!(key, "indices" | "values"),
+        (3, ["accessors", "sparse", "indices" | "values", _]) => key == "bufferView",
+        (1, ["bufferViews", ..]) => matches!(key, "byteLength" | "extensions"),
+        (2, ["bufferViews", "extensions", ..]) => MESHOPT.contains(&key),
+        (3, ["bufferViews", "extensions", name, _]) => {
+            MESHOPT.contains(&name) && key == "byteLength"
+        }
+        _ => false,
+    }
 }
 
 fn array(node: Option<&Node>) -> &[Node] {
@@ -138,18 +167,24 @@ mod tests {
                 {"buffer": 1, "byteLength": 400, "extensions": {"EXT_meshopt_compression":
                     {"buffer": 0, "byteLength": 40, "byteStride": 4, "count": 100, "mode": "ATTRIBUTES"}}},
                 {"buffer": 0, "byteLength": 7},
-                {"buffer": 0, "byteLength": 1000}
+                {"buffer": 0, "byteLength": 1000},
+                {"buffer": 0, "byteLength": 1},
+                {"buffer": 0, "byteLength": 5}
             ],
             "accessors": [
                 {"bufferView": 0, "componentType": 5126, "count": 1, "type": "VEC3"},
                 {"bufferView": 1, "componentType": 5126, "count": 1, "type": "VEC3"},
-                {"componentType": 5126, "count": 1, "type": "VEC3"}
+                {"componentType": 5126, "count": 1, "type": "VEC3"},
+                {"componentType": 5126, "count": 1, "type": "VEC3", "sparse": {"count": 1,
+                    "indices": {"bufferView": 4, "componentType": 5121},
+                    "values": {"bufferView": 5}}}
             ],
-            "meshes": [{"primitives": [
-                {"attributes": {"POSITION": 0}},
+            "meshes": [{"name": "m", "primitives": [
+                {"attributes": {"POSITION": 0}, "material": 0},
                 {"attributes": {"POSITION": 0, "NORMAL": 1}},
                 {"attributes": {"POSITION": 2},
-                 "extensions": {"KHR_draco_mesh_compression": {"bufferView": 2, "attributes": {"POSITION": 0}}}}
+                 "extensions": {"KHR_draco_mesh_compression": {"bufferView": 2, "attributes": {"POSITION": 0}}}},
+                {"attributes": {"POSITION": 0}, "targets": [{"POSITION": 3}], "indices": 2}
             ]}]
         }"#;
         let doc = Document::parse(text).unwrap();
@@ -161,7 +196,20 @@ mod tests {
             (Compression::Meshopt, 140)
         );
         assert_eq!((at(2).compression, at(2).bytes), (Compression::Draco, 7));
+        assert_eq!((at(3).compression, at(3).bytes), (Compression::None, 106));
         // View 3 is no mesh's.
-        assert_eq!(sizes.total, 147);
+        assert_eq!(sizes.total, 153);
+        // Read with only the members it needs, the document measures the same.
+        let pruned = tspace_json::parse_pruned(text, &read_by_measure).unwrap();
+        assert_eq!(measure(&pruned), sizes);
+        assert!(
+            pruned
+                .get("meshes")
+                .unwrap()
+                .index(0)
+                .unwrap()
+                .get("name")
+                .is_none()
+        );
     }
 }

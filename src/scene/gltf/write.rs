@@ -530,28 +530,44 @@ pub fn write(
     resources: &dyn Resources<'_>,
     pieces_of: Option<&[u8]>,
 ) -> Result<Written, SceneError> {
+    let Loaded {
+        container,
+        doc,
+        buffers,
+        other_chunks,
+    } = loaded;
     let (json, layout, mut images, mut written) =
-        edit(&loaded, &changes, format, compression, resources)?;
+        edit(&doc, &buffers, &changes, format, compression, resources)?;
+    // The edited JSON refers to the input's text alone. The tree goes before the output is
+    // assembled: in a scene of many small objects it is several times its text, and the
+    // output's JSON about the size of that text again.
+    drop(doc);
+    let other: &[glb::Chunk<'_>] = if container == Container::Glb {
+        &other_chunks
+    } else {
+        &[]
+    };
     match pieces_of {
         Some(input) if format == OutputFormat::Glb => {
-            let pieces = emit_pieces(&loaded, &json, layout, (&mut changes, &mut images), input)?;
+            let pieces = emit_pieces(other, &json, layout, (&mut changes, &mut images), input)?;
             written.pieces = Some(pieces);
         }
-        _ => written.bytes = emit(&loaded, &json, &layout, format, (&changes, &images))?,
+        _ => written.bytes = emit(other, &json, &layout, format, (&changes, &images))?,
     }
     Ok(written)
 }
 
 /// Everything [`write()`] does but emit the container: the edited JSON, the output buffer,
 /// and what the report needs to know (with no bytes yet).
-fn edit<'l>(
-    loaded: &'l Loaded<'_>,
+fn edit<'a, 'l>(
+    doc: &Document<'a>,
+    input_buffers: &'l [Buffer<'a>],
     changes: &Changes,
     format: OutputFormat,
     compression: Compression,
     resources: &dyn Resources<'_>,
-) -> Result<(json::Rendered<'l>, Layout<'l>, Images, Written), SceneError> {
-    let root = loaded.doc.root();
+) -> Result<(json::Rendered<'a>, Layout<'l>, Images, Written), SceneError> {
+    let root = doc.root();
     let output = compress::resolve(compression, root);
     let mut warnings = Vec::new();
     let references = References::of(root);
@@ -561,7 +577,7 @@ fn edit<'l>(
         Err(why) => (false, Some(why)),
     };
     let numbering = Numbering::new(&orphans, dropping);
-    let buffers = BufferMap::new(&loaded.buffers);
+    let buffers = BufferMap::new(input_buffers);
     let images = match format {
         OutputFormat::Glb => embed_images(root, resources, &mut warnings),
         OutputFormat::GltfEmbedded => Images::default(),
@@ -576,7 +592,7 @@ fn edit<'l>(
         }
     };
 
-    let mut editor = Editor::new(&loaded.doc);
+    let mut editor = Editor::new(doc);
     drop_accessors(&mut editor, root, &numbering)?;
     renumber_view_refs(&mut editor, &references, &numbering, changes)?;
     append_accessors(&mut editor, root, &numbering, changes)?;
@@ -606,7 +622,7 @@ fn edit<'l>(
     match &layout.packed {
         None => edit_buffers(
             &mut editor,
-            loaded,
+            doc,
             &buffers,
             &layout,
             (changes, &images),
@@ -616,7 +632,7 @@ fn edit<'l>(
         Some(packed) => {
             edit_buffers_packed(
                 &mut editor,
-                loaded,
+                doc,
                 &buffers,
                 &layout,
                 (changes, &images),
@@ -1513,14 +1529,14 @@ fn point_images_at_views(
 /// with data, is edited in place, keeping its layout.
 fn edit_buffers(
     editor: &mut Editor<'_, '_>,
-    loaded: &Loaded<'_>,
+    doc: &Document<'_>,
     buffers: &BufferMap<'_>,
     layout: &Layout<'_>,
     (changes, images): (&Changes, &Images),
     format: OutputFormat,
     warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
-    let root = loaded.doc.root();
+    let root = doc.root();
     let count = buffers.buffers.len();
     let byte_length = layout.bin.len().max(1);
     let bin_uri = bin_uri(layout, format, changes, images);
@@ -1535,12 +1551,12 @@ fn edit_buffers(
         node => {
             let mut entries: Vec<String> = Vec::new();
             if layout.bin_needed {
-                entries.push(merged_entry(loaded, buffers, layout, bin_uri, warnings)?);
+                entries.push(merged_entry(doc, buffers, layout, bin_uri, warnings)?);
             }
             let list = root.get("buffers").and_then(Node::as_array).unwrap_or(&[]);
             for (b, original) in list.iter().enumerate() {
                 if !buffers.has_data(b) {
-                    entries.push(loaded.doc.text(original).to_owned());
+                    entries.push(doc.text(original).to_owned());
                 }
             }
             let text = format!("[{}]", entries.join(","));
@@ -1574,14 +1590,14 @@ fn bin_uri(
 /// The entry of the one buffer every input buffer with data is merged into, saying so when more
 /// than one was.
 fn merged_entry(
-    loaded: &Loaded<'_>,
+    doc: &Document<'_>,
     buffers: &BufferMap<'_>,
     layout: &Layout<'_>,
     bin_uri: Option<String>,
     warnings: &mut Vec<Notice>,
 ) -> Result<String, SceneError> {
     let byte_length = layout.bin.len().max(1);
-    let entry = merged_buffer(loaded, buffers, byte_length, bin_uri.as_deref())?;
+    let entry = merged_buffer(doc, buffers, byte_length, bin_uri.as_deref())?;
     let merged_count = (0..buffers.buffers.len())
         .filter(|&b| buffers.has_data(b))
         .count();
@@ -1618,13 +1634,12 @@ fn point_buffer_at_bin(
 /// The merged buffer's entry: the first buffer with data, edited (its name and extras kept),
 /// or a new entry when none had data.
 fn merged_buffer(
-    loaded: &Loaded<'_>,
+    doc: &Document<'_>,
     buffers: &BufferMap<'_>,
     byte_length: usize,
     bin_uri: Option<&str>,
 ) -> Result<String, SceneError> {
-    let list = loaded
-        .doc
+    let list = doc
         .root()
         .get("buffers")
         .and_then(Node::as_array)
@@ -1632,7 +1647,7 @@ fn merged_buffer(
     let first_data = (0..buffers.buffers.len()).find(|&b| buffers.has_data(b));
     match first_data.and_then(|b| list.get(b)) {
         Some(original) => {
-            let text = loaded.doc.text(original);
+            let text = doc.text(original);
             let sub = Document::parse(text.as_bytes()).map_err(|e| {
                 SceneError::new(ProblemCode::MalformedJson, format!("buffers: {e}"))
             })?;
@@ -1647,7 +1662,7 @@ fn merged_buffer(
 /// The container: a GLB (keeping the input GLB's chunks after BIN), or the `.gltf` JSON. The
 /// edited JSON is written straight into it, never held as a text of its own besides.
 fn emit(
-    loaded: &Loaded<'_>,
+    other: &[glb::Chunk<'_>],
     json: &json::Rendered<'_>,
     layout: &Layout<'_>,
     format: OutputFormat,
@@ -1661,11 +1676,7 @@ fn emit(
                 .bin_needed
                 .then(|| layout.bin.slices(changes, images))
                 .as_deref(),
-            if loaded.container == Container::Glb {
-                &loaded.other_chunks
-            } else {
-                &[]
-            },
+            other,
         )
         .map_err(|e| SceneError::new(ProblemCode::OutputTooLarge, format!("the output {e}"))),
         OutputFormat::GltfEmbedded => {
@@ -1680,17 +1691,12 @@ fn emit(
 /// images' data moved out of `changes` and `images` rather than copied, and ranges of `input`
 /// for what lies in it (the kept views of a GLB's BIN chunk, the chunks after BIN).
 fn emit_pieces(
-    loaded: &Loaded<'_>,
+    other: &[glb::Chunk<'_>],
     json: &json::Rendered<'_>,
     layout: Layout<'_>,
     (changes, images): (&mut Changes, &mut Images),
     input: &[u8],
 ) -> Result<pieces::Pieces, SceneError> {
-    let other: &[glb::Chunk<'_>] = if loaded.container == Container::Glb {
-        &loaded.other_chunks
-    } else {
-        &[]
-    };
     let mut lengths = vec![(glb::CHUNK_JSON, json.len())];
     if layout.bin_needed {
         lengths.push((glb::CHUNK_BIN, layout.bin.len()));
@@ -2473,24 +2479,24 @@ fn edit_buffer_views_packed(
 /// compressed (the input's own fallback entry, resized, or a new one).
 fn edit_buffers_packed(
     editor: &mut Editor<'_, '_>,
-    loaded: &Loaded<'_>,
+    doc: &Document<'_>,
     buffers: &BufferMap<'_>,
     layout: &Layout<'_>,
     (changes, images): (&Changes, &Images),
     format: OutputFormat,
     warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
-    let root = loaded.doc.root();
+    let root = doc.root();
     let Some(packed) = &layout.packed else {
         return Ok(());
     };
     let bin_uri = bin_uri(layout, format, changes, images);
     let mut entries: Vec<String> = Vec::new();
     if layout.bin_needed {
-        entries.push(merged_entry(loaded, buffers, layout, bin_uri, warnings)?);
+        entries.push(merged_entry(doc, buffers, layout, bin_uri, warnings)?);
     }
     if packed.fallback_length > 0 {
-        entries.push(fallback_buffer(loaded, buffers, packed.fallback_length)?);
+        entries.push(fallback_buffer(doc, buffers, packed.fallback_length)?);
     }
     let text = format!("[{}]", entries.join(","));
     match root.get("buffers") {
@@ -2507,12 +2513,11 @@ fn edit_buffers_packed(
 /// The fallback buffer's entry: the input's first buffer without data that is marked as a
 /// meshopt fallback, with its new length (its name and extras kept), or a new one.
 fn fallback_buffer(
-    loaded: &Loaded<'_>,
+    doc: &Document<'_>,
     buffers: &BufferMap<'_>,
     byte_length: usize,
 ) -> Result<String, SceneError> {
-    let list = loaded
-        .doc
+    let list = doc
         .root()
         .get("buffers")
         .and_then(Node::as_array)
@@ -2527,7 +2532,7 @@ fn fallback_buffer(
     });
     match marked {
         Some((_, original)) => {
-            let text = loaded.doc.text(original);
+            let text = doc.text(original);
             let sub = Document::parse(text.as_bytes()).map_err(|e| {
                 SceneError::new(ProblemCode::MalformedJson, format!("buffers: {e}"))
             })?;
