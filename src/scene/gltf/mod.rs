@@ -161,8 +161,7 @@ fn process_and_write<'a>(
         painted: &painted,
     };
     let mut report = report_header(bytes, &loaded, options);
-    let mut edits = report_primitives(&scene, &plans, &jobs, &computed, &mut report)?;
-    add_totals(&mut report, &computed, &edits);
+    let mut edits = report_primitives(&scene, &plans, &jobs, computed, &mut report)?;
     if painting {
         report_painting(&mut report, root, &painted, &mut edits);
     }
@@ -175,8 +174,8 @@ fn process_and_write<'a>(
         job_refs,
         remapped,
     } = edits;
-    // The computations borrow the decoded accessors (see compute::Geometry), so go first.
-    drop((plans, jobs, computed, painted, job_refs, remapped));
+    // What borrows the decoded accessors (see compute::Geometry) goes first.
+    drop((plans, jobs, painted, job_refs, remapped));
     drop(decoded);
     let sizes_in = sizes::measure(root);
     let output = write_scene(bytes, loaded, changes, options, resources, &mut report)?;
@@ -483,15 +482,24 @@ struct Scene<'s> {
     painted: &'s [Painted],
 }
 
-/// One report entry per plan, in plan order; for each primitive that gets tangents, its edit.
+/// One report entry per plan, in plan order, and the report's totals; for each primitive that
+/// gets tangents, its edit. A computation's results are freed once its last primitive is
+/// reported (they are in the edits by then), so that the report's entries reuse their space.
 fn report_primitives(
     scene: &Scene<'_>,
     plans: &[PrimitivePlan],
     jobs: &Jobs,
-    computed: &[Computed],
+    computed: Vec<Computed>,
     report: &mut Report,
 ) -> Result<Edits, SceneError> {
     let mut edits = Edits::default();
+    report.summary.computations = computed.len() as u64;
+    let mut last_plan_of_job = vec![0; computed.len()];
+    for (p, job) in jobs.of_plan.iter().enumerate() {
+        if let Some(last) = job.and_then(|j| last_plan_of_job.get_mut(j)) {
+            *last = p;
+        }
+    }
     // Each job adds its accessors once: room for them all, rather than lists grown by doubling
     // (capacity no job uses is never touched). A job writes its tangents, and its generated
     // normals and debug colours when it has them; only remapped attributes are left to grow
@@ -508,47 +516,75 @@ fn report_primitives(
     edits.changes.reserve(added, plans.len());
     let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
     report.primitives.reserve_exact(plans.len());
-    for (plan, &job) in plans.iter().zip(&jobs.of_plan) {
+    let mut computed: Vec<Option<Computed>> = computed.into_iter().map(Some).collect();
+    for (p, (plan, &job)) in plans.iter().zip(&jobs.of_plan).enumerate() {
         SceneError::check(scene.cancel)?;
-        report.summary.primitives += 1;
-        let here = [plan.mesh, plan.primitive];
-        let first = job.map(|j| *first_plan_of_job.entry(j).or_insert(here));
-        let mut entry = report_entry(plan, first.filter(|first| *first != here));
-        match (&plan.action, job.and_then(|j| Some((j, computed.get(j)?)))) {
-            (Action::Skip(reason), _) => {
-                report.summary.skipped += 1;
-                entry.action = "skipped";
-                entry.reason = Some(reason.code());
-                entry.message = Some(reason.message());
-            }
-            (Action::Audit, Some((j, c))) => {
-                report.summary.audited += 1;
-                audit_primitive(scene, plan, c, &mut entry, report)?;
-                if let (Some(key), Some(primitive)) = (
-                    &plan.key,
-                    primitive_node(scene.root, plan.mesh, plan.primitive),
-                ) && let Some(edit) = edits.paint_kept(scene, primitive, key.topology, j, c)?
-                {
-                    edits
-                        .changes
-                        .primitives
-                        .insert((plan.mesh, plan.primitive), edit);
-                }
-            }
-            (Action::Generate, Some((j, c))) => {
-                report.summary.generated += 1;
-                if !generate_primitive(scene, plan, j, c, &mut entry, &mut edits)? {
-                    continue;
-                }
-            }
-            _ => entry.action = "skipped",
+        report_primitive(
+            scene,
+            (plan, job),
+            &computed,
+            &mut first_plan_of_job,
+            &mut edits,
+            report,
+        )?;
+        if let Some(j) = job.filter(|&j| last_plan_of_job.get(j) == Some(&p))
+            && let Some(c) = computed.get_mut(j).and_then(Option::take)
+        {
+            let written = edits.job_refs.get(j).is_some_and(|refs| refs.written);
+            add_totals(&mut report.summary, &c, written);
         }
-        if let Some(note) = painted_note(scene.root, plan, &edits) {
-            entry.notes.push(note);
-        }
-        report.primitives.push(entry);
     }
     Ok(edits)
+}
+
+/// One plan's report entry, and its edit when it gets tangents.
+fn report_primitive(
+    scene: &Scene<'_>,
+    (plan, job): (&PrimitivePlan, Option<usize>),
+    computed: &[Option<Computed>],
+    first_plan_of_job: &mut HashMap<usize, [usize; 2]>,
+    edits: &mut Edits,
+    report: &mut Report,
+) -> Result<(), SceneError> {
+    report.summary.primitives += 1;
+    let here = [plan.mesh, plan.primitive];
+    let first = job.map(|j| *first_plan_of_job.entry(j).or_insert(here));
+    let mut entry = report_entry(plan, first.filter(|first| *first != here));
+    let computation = job.and_then(|j| Some((j, computed.get(j)?.as_ref()?)));
+    match (&plan.action, computation) {
+        (Action::Skip(reason), _) => {
+            report.summary.skipped += 1;
+            entry.action = "skipped";
+            entry.reason = Some(reason.code());
+            entry.message = Some(reason.message());
+        }
+        (Action::Audit, Some((j, c))) => {
+            report.summary.audited += 1;
+            audit_primitive(scene, plan, c, &mut entry, report)?;
+            if let (Some(key), Some(primitive)) = (
+                &plan.key,
+                primitive_node(scene.root, plan.mesh, plan.primitive),
+            ) && let Some(edit) = edits.paint_kept(scene, primitive, key.topology, j, c)?
+            {
+                edits
+                    .changes
+                    .primitives
+                    .insert((plan.mesh, plan.primitive), edit);
+            }
+        }
+        (Action::Generate, Some((j, c))) => {
+            report.summary.generated += 1;
+            if !generate_primitive(scene, plan, j, c, &mut entry, edits)? {
+                return Ok(());
+            }
+        }
+        _ => entry.action = "skipped",
+    }
+    if let Some(note) = painted_note(scene.root, plan, edits) {
+        entry.notes.push(note);
+    }
+    report.primitives.push(entry);
+    Ok(())
 }
 
 /// A painted primitive's note: what it lost in the debug output.
@@ -742,23 +778,19 @@ fn generate_primitive(
     Ok(true)
 }
 
-/// The summary's totals over the computations. Only jobs whose accessors were written added
+/// Adds one computation to the summary's totals. Only jobs whose accessors were written added
 /// vertices (an audit adds none).
-fn add_totals(report: &mut Report, computed: &[Computed], edits: &Edits) {
-    let summary = &mut report.summary;
-    summary.computations = computed.len() as u64;
-    for (j, c) in computed.iter().enumerate() {
-        let d = &c.tangents.diagnostics;
-        summary.triangles += d.triangles;
-        summary.fallback_tangents += d.fallback_tangents.corners.count;
-        summary.handedness_flip_vertices += d.handedness_flip_vertices.count;
-        summary.degenerate_triangles +=
-            d.duplicate_position_triangles.count + d.zero_area_triangles.count;
-        summary.zero_uv_area_triangles += d.zero_uv_area_triangles.count;
-        summary.mirrored_uv_triangles += d.mirrored_uv_triangles.count;
-        if edits.job_refs.get(j).is_some_and(|refs| refs.written) {
-            summary.vertices_added += d.vertices_added;
-        }
+fn add_totals(summary: &mut crate::scene::report::Summary, c: &Computed, written: bool) {
+    let d = &c.tangents.diagnostics;
+    summary.triangles += d.triangles;
+    summary.fallback_tangents += d.fallback_tangents.corners.count;
+    summary.handedness_flip_vertices += d.handedness_flip_vertices.count;
+    summary.degenerate_triangles +=
+        d.duplicate_position_triangles.count + d.zero_area_triangles.count;
+    summary.zero_uv_area_triangles += d.zero_uv_area_triangles.count;
+    summary.mirrored_uv_triangles += d.mirrored_uv_triangles.count;
+    if written {
+        summary.vertices_added += d.vertices_added;
     }
 }
 
