@@ -197,19 +197,48 @@ pub struct DiagnosticsReport {
 pub struct TallyReport {
     pub count: u64,
     /// The first few indices (triangles or vertices, as the name says), ascending.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub first: Vec<u32>,
+    #[serde(skip_serializing_if = "FirstFew::is_empty")]
+    #[schema(value_type = Vec<u32>)]
+    pub first: FirstFew,
+}
+
+/// The first few indices of a tally, ascending. A report holds eleven such lists per primitive
+/// and a scene may have a hundred thousand primitives, nearly all with every list empty: an
+/// empty list here is one null pointer, where a `Vec` takes 24 bytes.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FirstFew(Option<Box<Box<[u32]>>>);
+
+impl FirstFew {
+    pub fn new(list: &[u32]) -> FirstFew {
+        FirstFew((!list.is_empty()).then(|| Box::new(list.into())))
+    }
+
+    pub fn as_slice(&self) -> &[u32] {
+        self.0.as_deref().map_or(&[], |list| list)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_none()
+    }
+}
+
+impl Serialize for FirstFew {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        self.as_slice().serialize(serializer)
+    }
 }
 
 #[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct FallbackReport {
     pub count: u64,
     /// The first few corners (positions in the index list), ascending.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub first: Vec<u32>,
+    #[serde(skip_serializing_if = "FirstFew::is_empty")]
+    #[schema(value_type = Vec<u32>)]
+    pub first: FirstFew,
     /// Deprecated since report version 2: `first`, under the name every other list has.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub first_corners: Vec<u32>,
+    #[serde(skip_serializing_if = "FirstFew::is_empty")]
+    #[schema(value_type = Vec<u32>)]
+    pub first_corners: FirstFew,
     pub unassigned: u64,
     pub zero_length: u64,
     pub non_finite: u64,
@@ -305,7 +334,7 @@ impl From<&Tally> for TallyReport {
     fn from(t: &Tally) -> Self {
         TallyReport {
             count: t.count,
-            first: t.first.clone(),
+            first: FirstFew::new(&t.first),
         }
     }
 }
@@ -314,8 +343,8 @@ impl From<&FallbackCounts> for FallbackReport {
     fn from(f: &FallbackCounts) -> Self {
         FallbackReport {
             count: f.corners.count,
-            first: f.corners.first.clone(),
-            first_corners: f.corners.first.clone(),
+            first: FirstFew::new(&f.corners.first),
+            first_corners: FirstFew::new(&f.corners.first),
             unassigned: f.unassigned,
             zero_length: f.zero_length,
             non_finite: f.non_finite,
