@@ -10,6 +10,7 @@
 //! deprecated in `docs/report.md`, until version 3.
 
 use serde::Serialize;
+use std::sync::Arc;
 use tspace_tangent::{Diagnostics, FallbackCounts, Tally};
 use utoipa::ToSchema;
 
@@ -134,8 +135,10 @@ pub struct Dropped {
 pub struct PrimitiveReport {
     pub mesh: usize,
     pub primitive: usize,
+    // Shared by the mesh's primitives: a scene may have a hundred thousand in one mesh.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub mesh_name: Option<String>,
+    #[schema(value_type = Option<String>)]
+    pub mesh_name: Option<Arc<str>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub material: Option<usize>,
     /// `generated`, `overwritten`, `audited` (existing tangents kept and compared) or `skipped`.

@@ -256,7 +256,7 @@ fn layouts(
         layout.primitives.push(PrimitiveRef {
             mesh: plan.mesh,
             primitive: plan.primitive,
-            mesh_name: plan.mesh_name.clone(),
+            mesh_name: plan.mesh_name.as_deref().map(str::to_owned),
         });
     }
     layouts.into_iter().flatten().collect()

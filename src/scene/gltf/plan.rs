@@ -8,6 +8,7 @@
 //! reason. Primitives with the same mode, indices, `POSITION`, `NORMAL`, texture coordinates and
 //! morph targets are computed once.
 
+use std::sync::Arc;
 use tspace_json::Node;
 
 /// How a primitive's triangles are laid out (`mode`).
@@ -110,7 +111,8 @@ pub struct GeometryKey {
 pub struct PrimitivePlan {
     pub mesh: usize,
     pub primitive: usize,
-    pub mesh_name: Option<String>,
+    /// Shared by the mesh's primitives (and their report entries).
+    pub mesh_name: Option<Arc<str>>,
     pub material: Option<usize>,
     /// The texture-coordinate set the tangent frame follows.
     pub texcoord_set: u32,
@@ -346,7 +348,7 @@ fn geometry_key(
 
 fn plan_primitive(
     mesh: usize,
-    mesh_name: &Option<String>,
+    mesh_name: &Option<Arc<str>>,
     index: usize,
     primitive: &Node,
     materials: &[Node],
@@ -390,7 +392,7 @@ pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
         .sum();
     let mut plans = Vec::with_capacity(count);
     for (mesh_index, mesh) in array(root, "meshes").iter().enumerate() {
-        let mesh_name = mesh.get("name").and_then(Node::as_str).map(str::to_owned);
+        let mesh_name = mesh.get("name").and_then(Node::as_str).map(Arc::from);
         for (index, primitive) in array(mesh, "primitives").iter().enumerate() {
             plans.push(plan_primitive(
                 mesh_index, &mesh_name, index, primitive, materials, options,
