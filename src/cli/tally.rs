@@ -276,11 +276,11 @@ mod tests {
             diagnostics: Some(Box::new(DiagnosticsReport {
                 zero_uv_area_triangles: TallyReport {
                     count: 3,
-                    first: vec![0],
+                    first: crate::scene::report::FirstFew::new(&[0]),
                 },
                 mirrored_uv_triangles: TallyReport {
                     count: 7,
-                    first: vec![0],
+                    first: crate::scene::report::FirstFew::new(&[0]),
                 },
                 ..DiagnosticsReport::default()
             })),

@@ -672,7 +672,7 @@ mod tests {
     fn tally(count: u64) -> TallyReport {
         TallyReport {
             count,
-            first: vec![0],
+            first: FirstFew::new(&[0]),
         }
     }
 
