@@ -693,8 +693,10 @@ struct Parser<'a> {
     keep: Option<Keep<'a>>,
     /// the keys of the objects being read, outermost first,
     path: Vec<Text>,
-    /// and the members left out, with where their keys start, for the duplicate-key check.
+    /// the members left out, with where their keys start, for the duplicate-key check,
     left_out: Vec<(Text, usize)>,
+    /// and how many of the values being read are left out (inside one, nothing is kept).
+    leaving_out: usize,
 }
 
 impl<'a> Parser<'a> {
@@ -710,6 +712,7 @@ impl<'a> Parser<'a> {
             keep,
             path: Vec::new(),
             left_out: Vec::new(),
+            leaving_out: 0,
         }
     }
 
@@ -810,7 +813,9 @@ impl<'a> Parser<'a> {
         }
         loop {
             let element = self.value()?;
-            self.elements.push(element);
+            if self.leaving_out == 0 {
+                self.elements.push(element);
+            }
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -860,15 +865,18 @@ impl<'a> Parser<'a> {
                     self.key_starts.push(key_start);
                 }
                 Some(keep) => {
-                    let kept = keep(&self.path, &key);
-                    self.path.push(key.clone());
-                    // A member left out is still read whole, to check it, and freed at once.
-                    let value = self.value()?;
-                    self.path.pop();
-                    if kept {
+                    if self.leaving_out == 0 && keep(&self.path, &key) {
+                        self.path.push(key.clone());
+                        let value = self.value()?;
+                        self.path.pop();
                         self.members.push(Member { key, value });
                         self.key_starts.push(key_start);
                     } else {
+                        // Read whole, to check it, but nothing in it is kept but the keys of
+                        // its objects, while each is checked.
+                        self.leaving_out += 1;
+                        self.value()?;
+                        self.leaving_out -= 1;
                         self.left_out.push((key, key_start));
                     }
                 }
