@@ -6,6 +6,7 @@
 
 mod batch;
 mod health;
+pub mod huge_pages;
 mod outcome;
 mod paths;
 mod picture;
@@ -354,6 +355,9 @@ fn usage_error(subcommand: &str, message: impl std::fmt::Display) -> Exit {
 
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    if !matches!(cli.command, Command::Serve(_)) {
+        huge_pages::enable();
+    }
     match cli.command {
         Command::Serve(args) => match crate::server::run(args.into()) {
             Ok(()) => ExitCode::SUCCESS,
