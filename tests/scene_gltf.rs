@@ -557,6 +557,8 @@ fn primitives_sharing_accessors_are_computed_once() {
     let done = process_glb(&b.glb(doc), SceneOptions::default());
     assert_eq!(done.report.summary.computations, 1);
     assert_eq!(done.report.summary.generated, 2);
+    // The computation's totals count once, though two primitives use it.
+    assert_eq!(done.report.summary.triangles, 2);
     assert_eq!(done.report.primitives[1].shared_with, Some([0, 0]));
     let bytes = done.bytes.unwrap();
     assert_valid("shared.glb", &bytes);
