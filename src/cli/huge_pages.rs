@@ -2,11 +2,13 @@
 //!
 //! A command that processes a large mesh and exits touches every page of its working arrays
 //! once, so it pays a page fault per 4 KiB: 56,800 faults for the 2M-triangle sphere of the
-//! `whole_path` bench, a fifth of its time. Linux's transparent huge pages serve such arrays
-//! in 2 MiB pages, but on most distributions only where a program asks (`madvise` mode, as on
-//! this project's machines), so the allocator asks for every allocation of 4 MiB or more.
-//! Measured, ten interleaved runs of `tspace process` on that sphere: 15,400 faults instead of
-//! 56,800, and a median of 0.26 s instead of 0.315 s; smaller scenes never reach the threshold.
+//! `whole_path` bench, about a fifth of its time. Linux's transparent huge pages serve such
+//! arrays in 2 MiB pages, but where the kernel is set to `madvise` (as on this project's
+//! machines, and Ubuntu's default) only for memory a program asks for, so the allocator asks
+//! for every allocation of 4 MiB or more (where the setting is `always`, the advice changes
+//! nothing; where it is `never`, it is ignored). Measured, interleaved runs of each binary on
+//! that sphere: 15,400 faults instead of 56,800, and a median of 0.26 s instead of 0.315–0.33 s;
+//! smaller scenes never reach the threshold.
 //!
 //! Only the commands turn it on ([`enable`]); the service does not. A long-running server
 //! reuses its allocator's memory across requests, and a huge page fault may stall to compact
