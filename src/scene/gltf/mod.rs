@@ -494,10 +494,12 @@ fn report_primitives(
 ) -> Result<Edits, SceneError> {
     let mut edits = Edits::default();
     report.summary.computations = computed.len() as u64;
-    let mut last_plan_of_job = vec![0; computed.len()];
+    // Per job, the first and the last plan that use it: the first's entry carries the job's
+    // findings (the others name it in `shared_with`), and after the last its computation goes.
+    let mut plans_of_job: Vec<Option<(usize, usize)>> = vec![None; computed.len()];
     for (p, job) in jobs.of_plan.iter().enumerate() {
-        if let Some(last) = job.and_then(|j| last_plan_of_job.get_mut(j)) {
-            *last = p;
+        if let Some(span) = job.and_then(|j| plans_of_job.get_mut(j)) {
+            span.get_or_insert((p, p)).1 = p;
         }
     }
     // Each job adds its accessors once: room for them all, rather than lists grown by doubling
@@ -514,20 +516,24 @@ fn report_primitives(
         })
         .sum();
     edits.changes.reserve(added, plans.len());
-    let mut first_plan_of_job: HashMap<usize, [usize; 2]> = HashMap::new();
     report.primitives.reserve_exact(plans.len());
     let mut computed: Vec<Option<Computed>> = computed.into_iter().map(Some).collect();
     for (p, (plan, &job)) in plans.iter().zip(&jobs.of_plan).enumerate() {
         SceneError::check(scene.cancel)?;
+        let span = job.and_then(|j| plans_of_job.get(j).copied().flatten());
+        let shared_with = span
+            .map(|(first, _)| first)
+            .filter(|&first| first != p)
+            .and_then(|first| plans.get(first))
+            .map(|first| [first.mesh, first.primitive]);
         report_primitive(
             scene,
-            (plan, job),
+            (plan, job, shared_with),
             &computed,
-            &mut first_plan_of_job,
             &mut edits,
             report,
         )?;
-        if let Some(j) = job.filter(|&j| last_plan_of_job.get(j) == Some(&p))
+        if let Some(j) = job.filter(|_| span.is_some_and(|(_, last)| last == p))
             && let Some(c) = computed.get_mut(j).and_then(Option::take)
         {
             let written = edits.job_refs.get(j).is_some_and(|refs| refs.written);
@@ -537,19 +543,17 @@ fn report_primitives(
     Ok(edits)
 }
 
-/// One plan's report entry, and its edit when it gets tangents.
+/// One plan's report entry (naming the first primitive with the same geometry when that is
+/// another), and its edit when it gets tangents.
 fn report_primitive(
     scene: &Scene<'_>,
-    (plan, job): (&PrimitivePlan, Option<usize>),
+    (plan, job, shared_with): (&PrimitivePlan, Option<usize>, Option<[usize; 2]>),
     computed: &[Option<Computed>],
-    first_plan_of_job: &mut HashMap<usize, [usize; 2]>,
     edits: &mut Edits,
     report: &mut Report,
 ) -> Result<(), SceneError> {
     report.summary.primitives += 1;
-    let here = [plan.mesh, plan.primitive];
-    let first = job.map(|j| *first_plan_of_job.entry(j).or_insert(here));
-    let mut entry = report_entry(plan, first.filter(|first| *first != here));
+    let mut entry = report_entry(plan, shared_with);
     let computation = job.and_then(|j| Some((j, computed.get(j)?.as_ref()?)));
     match (&plan.action, computation) {
         (Action::Skip(reason), _) => {
