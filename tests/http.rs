@@ -917,6 +917,77 @@ async fn the_normals_option_chooses_an_objs_generated_normals() {
     running.shutdown().await.unwrap();
 }
 
+/// While the service is saturated, scene requests are refused at the door: a 503 problem with
+/// `Retry-After`, counted in the metrics per route, while the probes, metrics and documents
+/// stay answered. A request without a valid key still learns only that it needs one.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_saturated_service_refuses_scenes_after_the_key_and_answers_probes() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let dir = std::env::temp_dir().join(format!("tspace-shed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("keys");
+    std::fs::write(&file, "key-for-ci\n").unwrap();
+    let (running, base) = server(ServerConfig {
+        in_flight: 1,
+        read_timeout: Duration::from_millis(800),
+        api_keys_file: Some(file),
+        ..ServerConfig::local()
+    })
+    .await;
+    // A trickling client with a key holds the one in-flight slot.
+    let mut slow = tokio::net::TcpStream::connect(running.addr).await.unwrap();
+    slow.write_all(b"POST /v1/tangents HTTP/1.1\r\nHost: t\r\nAuthorization: Bearer key-for-ci\r\nContent-Type: model/obj\r\nContent-Length: 1000\r\n\r\nv 0 0 0\n")
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let http = client();
+    let post = |route: &str, key: Option<&str>| {
+        let mut request = http
+            .post(format!("{base}{route}"))
+            .body(fixture("Box/Box.glb"));
+        if let Some(key) = key {
+            request = request.header("authorization", format!("Bearer {key}"));
+        }
+        request.send()
+    };
+    for key in [None, Some("wrong")] {
+        let response = post("/v1/tangents", key).await.unwrap();
+        problem(response, 401, "unauthorized").await;
+    }
+    for route in ["/v1/tangents", "/v1/analyze", "/v1/uv-layout"] {
+        let response = post(route, Some("key-for-ci")).await.unwrap();
+        assert_eq!(response.headers()["retry-after"], "1", "{route}");
+        problem(response, 503, "overloaded").await;
+    }
+    for open in [
+        "/healthz",
+        "/metrics",
+        "/openapi.json",
+        "/problems/overloaded",
+    ] {
+        let response = http.get(format!("{base}{open}")).send().await.unwrap();
+        assert_eq!(response.status(), 200, "{open}");
+    }
+    let metrics = metrics_text(&base).await;
+    for counted in [
+        "tspace_rejections_total{reason=\"overloaded\"} 3",
+        "tspace_rejections_total{reason=\"unauthorized\"} 2",
+        "tspace_requests_total{route=\"/v1/analyze\",status=\"503\"} 1",
+        "tspace_requests_total{route=\"/v1/uv-layout\",status=\"503\"} 1",
+        "tspace_requests_total{route=\"/v1/tangents\",status=\"503\"} 1",
+    ] {
+        assert!(metrics.contains(counted), "{counted} in {metrics}");
+    }
+    // Once the slow client has timed out, its slot is free and scenes are taken again.
+    let mut answer = Vec::new();
+    let _ = tokio::time::timeout(Duration::from_secs(5), slow.read_to_end(&mut answer)).await;
+    assert!(String::from_utf8_lossy(&answer).starts_with("HTTP/1.1 408"));
+    let response = post("/v1/tangents", Some("key-for-ci")).await.unwrap();
+    assert_eq!(response.status(), 200);
+    running.shutdown().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// With a key file, the scene routes need `Authorization: Bearer <key>`; a missing or wrong
 /// key is a 401 problem with `WWW-Authenticate`, whose text never repeats the key sent; the
 /// probes, metrics and the API's description stay open.

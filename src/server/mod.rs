@@ -17,6 +17,7 @@ mod page;
 pub mod pool;
 pub mod problem;
 mod routes;
+mod shed;
 mod stall;
 
 use crate::config::{LogFormat, ServerConfig};
@@ -60,6 +61,8 @@ pub struct App {
     pub api_keys: Option<keys::ApiKeys>,
     /// How much of refused uploads is read, so that their clients get a clean 503.
     pub drain_budget: budget::DrainBudget,
+    /// The answer refused scene requests get, and their count for the log.
+    refusals: shed::Refusals,
 }
 
 impl App {
@@ -82,6 +85,7 @@ impl App {
             config,
             metrics: Metrics::default(),
             draining: AtomicBool::new(false),
+            refusals: shed::Refusals::default(),
         })
     }
 }
@@ -165,6 +169,7 @@ fn panic_response(payload: Box<dyn std::any::Any + Send + 'static>) -> Response<
 /// The whole router, for a given state.
 pub fn router(app: Arc<App>) -> Router {
     let body_limit = app.config.body_limit;
+    let outermost = Arc::clone(&app);
     let scenes = Router::new()
         .route("/v1/tangents", axum::routing::post(routes::tangents))
         .route("/v1/analyze", axum::routing::post(routes::analyze))
@@ -218,6 +223,10 @@ pub fn router(app: Arc<App>) -> Router {
                 ),
         )
         .layer(SetRequestIdLayer::new(REQUEST_ID, Counter::default()))
+        .layer(middleware::from_fn_with_state(
+            outermost,
+            shed::shed_when_saturated,
+        ))
 }
 
 /// A server running in the background of the current runtime.

@@ -2,13 +2,14 @@
 //! and turn its answer into a response.
 
 use super::encoding::{self, BodyFailure};
-use super::held::{HeldBody, LingeringBody};
+use super::held::HeldBody;
 use super::mixed;
 use super::openapi::{
     AnalyzeQuery, PictureQuery, ReportAndScene, SceneFile, SceneUpload, TangentsQuery, WrittenScene,
 };
 use super::pool::Reservation;
 use super::problem::Problem;
+use super::shed;
 use super::{App, content_type};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::input::{self, InputKind};
@@ -252,11 +253,11 @@ struct Admitted<'a> {
 /// is read.
 async fn admit(app: &App, request: Request) -> Result<(Request, Admitted<'_>), Box<Response>> {
     let Ok(permit) = Arc::clone(&app.in_flight).try_acquire_owned() else {
-        return Err(Box::new(shed_unread(app, request).await));
+        return Err(Box::new(shed::refuse(app, request).await));
     };
     match app.pool.reserve() {
         Ok(place) => Ok((request, Admitted { permit, place })),
-        Err(_) => Err(Box::new(shed_unread(app, request).await)),
+        Err(_) => Err(Box::new(shed::refuse(app, request).await)),
     }
 }
 
@@ -284,59 +285,6 @@ async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Prob
     }
 }
 
-/// The 503 for a request refused before its body was read. While the drain budget lasts
-/// ([`super::budget`]), the body is read and thrown away (within the read timeout) and the
-/// connection stays usable: a burst of refusals gets clean 503s. Beyond it the body is left
-/// unread, so that under a flood refusing costs next to nothing (reading every refused upload
-/// left a fifth of the capacity for accepted requests at four times the capacity): the answer
-/// says `Connection: close`, and the connection lingers for [`LINGER`] after the 503 is sent,
-/// unread, so that the client can read its 503 before the close, then closes. A client whose
-/// body does not fit in the socket buffers may still see its write fail; it is being refused
-/// either way. A client waiting for `100 Continue` (curl, for any body over 1 MiB) has sent no
-/// body, and is answered at once: its refusal costs both sides one round trip.
-async fn shed_unread(app: &App, request: Request) -> Response {
-    use http_body_util::BodyExt;
-    app.metrics.reject("overloaded");
-    let headers = request.headers();
-    let waits_for_continue = headers
-        .get(header::EXPECT)
-        .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
-    let declared_length = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok());
-    let mut response = Problem::overloaded().into_response();
-    if waits_for_continue {
-        // Its body will not come: the connection ends with this answer (HTTP says to tell the
-        // client so; hyper closes it either way, the body being unread).
-        response
-            .headers_mut()
-            .insert(header::CONNECTION, HeaderValue::from_static("close"));
-        return response;
-    }
-    let limit = app.config.body_limit;
-    let affordable = declared_length.is_some_and(|n| n <= limit as u64 && app.drain_budget.take(n));
-    if affordable {
-        let mut body = request.into_body();
-        let drain = async { while let Some(Ok(_)) = body.frame().await {} };
-        let _ = tokio::time::timeout(app.config.read_timeout, drain).await;
-        return response;
-    }
-    closing_after_linger(response)
-}
-
-/// `response`, for a request whose body is left partly unread: with `Connection: close`, the
-/// connection kept open for [`LINGER`] after the answer so that the client can read it before
-/// the close (a close with unread bytes is a reset, which can overtake the answer).
-fn closing_after_linger(response: Response) -> Response {
-    let (parts, body) = response.into_parts();
-    let mut response = Response::from_parts(parts, Body::new(LingeringBody::new(body, LINGER)));
-    response
-        .headers_mut()
-        .insert(header::CONNECTION, HeaderValue::from_static("close"));
-    response
-}
-
 /// Admits a scene request and reads its upload, or the answer when either cannot be had: the
 /// 503 of a refusal, or the problem with the body (one over the limit answered while the client
 /// may still be sending it).
@@ -344,15 +292,12 @@ async fn accept(app: &App, request: Request) -> Result<(Upload, Admitted<'_>), B
     let (request, admitted) = admit(app, request).await?;
     match read_upload_in_time(app, request).await {
         Ok(upload) => Ok((upload, admitted)),
-        Err(problem) if problem.code == ProblemCode::BodyTooLarge => {
-            Err(Box::new(closing_after_linger(problem.into_response())))
-        }
+        Err(problem) if problem.code == ProblemCode::BodyTooLarge => Err(Box::new(
+            shed::closing_after_linger(problem.into_response()),
+        )),
         Err(problem) => Err(Box::new(problem.into_response())),
     }
 }
-
-/// How long a refused request's connection stays open, unread, after its 503.
-const LINGER: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Cancels a scene's work when the request stops waiting for it: [`run`] returns early with a
 /// 504, or the handler is dropped because its client went away. Then the worker is free within
