@@ -917,16 +917,30 @@ async fn the_normals_option_chooses_an_objs_generated_normals() {
     running.shutdown().await.unwrap();
 }
 
+/// Asserts that a GET of each of `paths` is answered 200.
+async fn answered(base: &str, paths: &[&str]) {
+    for path in paths {
+        let response = client().get(format!("{base}{path}")).send().await.unwrap();
+        assert_eq!(response.status(), 200, "{path}");
+    }
+}
+
+/// A key file holding `keys`, in a folder of the test's own: the folder and the file.
+fn key_file(test: &str, keys: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!("tspace-{test}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("keys");
+    std::fs::write(&file, keys).unwrap();
+    (dir, file)
+}
+
 /// While the service is saturated, scene requests are refused at the door: a 503 problem with
 /// `Retry-After`, counted in the metrics per route, while the probes, metrics and documents
 /// stay answered. A request without a valid key still learns only that it needs one.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_saturated_service_refuses_scenes_after_the_key_and_answers_probes() {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let dir = std::env::temp_dir().join(format!("tspace-shed-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("keys");
-    std::fs::write(&file, "key-for-ci\n").unwrap();
+    let (dir, file) = key_file("shed", "key-for-ci\n");
     let (running, base) = server(ServerConfig {
         in_flight: 1,
         read_timeout: Duration::from_millis(800),
@@ -959,15 +973,16 @@ async fn a_saturated_service_refuses_scenes_after_the_key_and_answers_probes() {
         assert_eq!(response.headers()["retry-after"], "1", "{route}");
         problem(response, 503, "overloaded").await;
     }
-    for open in [
-        "/healthz",
-        "/metrics",
-        "/openapi.json",
-        "/problems/overloaded",
-    ] {
-        let response = http.get(format!("{base}{open}")).send().await.unwrap();
-        assert_eq!(response.status(), 200, "{open}");
-    }
+    answered(
+        &base,
+        &[
+            "/healthz",
+            "/metrics",
+            "/openapi.json",
+            "/problems/overloaded",
+        ],
+    )
+    .await;
     let metrics = metrics_text(&base).await;
     for counted in [
         "tspace_rejections_total{reason=\"overloaded\"} 3",
@@ -993,10 +1008,7 @@ async fn a_saturated_service_refuses_scenes_after_the_key_and_answers_probes() {
 /// probes, metrics and the API's description stay open.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn api_keys_guard_the_scene_routes_only() {
-    let dir = std::env::temp_dir().join(format!("tspace-keys-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("keys");
-    std::fs::write(&file, "# pipeline\nkey-for-ci\n\nkey-for-artists\n").unwrap();
+    let (dir, file) = key_file("keys", "# pipeline\nkey-for-ci\n\nkey-for-artists\n");
     let (running, base) = server(ServerConfig {
         api_keys_file: Some(file.clone()),
         ..ServerConfig::local()
@@ -1054,18 +1066,19 @@ async fn api_keys_guard_the_scene_routes_only() {
         metrics.contains("tspace_rejections_total{reason=\"unauthorized\"} 5"),
         "{metrics}"
     );
-    for open in [
-        "/healthz",
-        "/readyz",
-        "/metrics",
-        "/openapi.json",
-        "/problems/unauthorized",
-        "/",
-        "/page/page.js",
-    ] {
-        let response = http.get(format!("{base}{open}")).send().await.unwrap();
-        assert_eq!(response.status(), 200, "{open}");
-    }
+    answered(
+        &base,
+        &[
+            "/healthz",
+            "/readyz",
+            "/metrics",
+            "/openapi.json",
+            "/problems/unauthorized",
+            "/",
+            "/page/page.js",
+        ],
+    )
+    .await;
     running.shutdown().await.unwrap();
 
     // A key file without a key, or missing, stops the service from starting, naming the file.
