@@ -90,6 +90,20 @@ impl App {
     }
 }
 
+impl App {
+    /// Whether a request with these headers may use the scene routes: the service has no keys,
+    /// or its `Authorization` carries one of them.
+    fn admits_key(&self, headers: &axum::http::HeaderMap) -> bool {
+        self.api_keys.as_ref().is_none_or(|keys| {
+            keys.allows(
+                headers
+                    .get(header::AUTHORIZATION)
+                    .map(HeaderValue::as_bytes),
+            )
+        })
+    }
+}
+
 const MIB: f64 = 1024.0 * 1024.0;
 
 const REQUEST_ID: HeaderName = HeaderName::from_static("x-request-id");
@@ -115,15 +129,11 @@ async fn require_api_key(
     request: Request,
     next: Next,
 ) -> axum::response::Response {
-    let Some(keys) = &app.api_keys else {
-        return next.run(request).await;
-    };
-    let authorization = request.headers().get(header::AUTHORIZATION);
-    if keys.allows(authorization.map(HeaderValue::as_bytes)) {
+    if app.admits_key(request.headers()) {
         return next.run(request).await;
     }
     app.metrics.reject("unauthorized");
-    let detail = if authorization.is_some() {
+    let detail = if request.headers().contains_key(header::AUTHORIZATION) {
         "the Authorization header does not carry a valid API key; send Authorization: Bearer <key>"
     } else {
         "this service requires an API key; send Authorization: Bearer <key>"

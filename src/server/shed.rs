@@ -92,26 +92,17 @@ pub async fn shed_when_saturated(
     request: Request,
     next: Next,
 ) -> Response {
-    let refusable = request.method() == Method::POST
-        && SCENE_ROUTES.contains(&request.uri().path())
-        && saturated(&app);
-    let authorised = |request: &Request| match &app.api_keys {
-        Some(keys) => keys.allows(
-            request
-                .headers()
-                .get(header::AUTHORIZATION)
-                .map(HeaderValue::as_bytes),
-        ),
-        None => true,
+    let path = request.uri().path();
+    let Some(route) = SCENE_ROUTES.iter().copied().find(|route| *route == path) else {
+        return next.run(request).await;
     };
-    if !refusable || !authorised(&request) {
+    if request.method() != Method::POST || !saturated(&app) || !app.admits_key(request.headers()) {
         return next.run(request).await;
     }
     let started = Instant::now();
-    let route = request.uri().path().to_owned();
     let response = refuse(&app, request).await;
     app.metrics
-        .record(&route, response.status().as_u16(), started.elapsed());
+        .record(route, response.status().as_u16(), started.elapsed());
     response
 }
 
