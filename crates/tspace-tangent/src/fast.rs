@@ -13,7 +13,7 @@ use super::math::{
 };
 use super::output::{Copies, SharedSplit};
 use super::split::SplitPlan;
-use super::triangles::{BATCH, TriangleColumns, per_triangle_pass};
+use super::triangles::{BATCH, TriangleColumns, per_triangle_fold, per_triangle_pass};
 use super::vectors::widest_vectors;
 use super::weld::{CornerTable, NONE, weld_mesh};
 use glam::Vec3;
@@ -165,8 +165,95 @@ impl FaceColumns {
     }
 }
 
+/// What the corners of one welded vertex add up to, on each side of a mirror seam. Corners are
+/// added in ascending order on both paths below, so their sums agree bit for bit.
+#[derive(Clone, Copy)]
+struct VertexSums {
+    /// `[preserving, mirrored]` weighted sums of dP/du and dP/dv.
+    s: [Vec3; 2],
+    t: [Vec3; 2],
+    /// Bit `side`: some corner's triangle lies on that side.
+    sides_used: u8,
+    /// Some corner's triangle has no side (no UV area); it takes the strongest side's tangent.
+    unsigned: bool,
+    /// The vertex of the first corner added, whose normal the vertex's tangents are made
+    /// against (the welded vertices' normals are equal, but may differ in the sign of a zero).
+    first_vertex: u32,
+}
+
+impl VertexSums {
+    const EMPTY: VertexSums = VertexSums {
+        s: [Vec3::ZERO; 2],
+        t: [Vec3::ZERO; 2],
+        sides_used: 0,
+        unsigned: false,
+        first_vertex: NONE,
+    };
+
+    #[inline(always)]
+    fn add(&mut self, face: &Face, corner: usize, vertex: u32) {
+        if self.first_vertex == NONE {
+            self.first_vertex = vertex;
+        }
+        if face.sign == 0.0 {
+            self.unsigned = true;
+            return;
+        }
+        let side = usize::from(face.sign < 0.0);
+        self.sides_used |= 1 << side;
+        let w = face.weights[corner];
+        self.s[side] += Vec3::from(face.s) * w;
+        self.t[side] += Vec3::from(face.t) * w;
+    }
+
+    /// The side a corner of `face` takes: its own, or the strongest when it has none.
+    #[inline(always)]
+    fn side_of(&self, sign: f32) -> usize {
+        if sign == 0.0 {
+            usize::from(self.s[1].length_squared() > self.s[0].length_squared())
+        } else {
+            usize::from(sign < 0.0)
+        }
+    }
+
+    /// The sides some corner takes (bit `side`).
+    fn sides_taken(&self) -> u8 {
+        if self.unsigned {
+            self.sides_used | 1 << self.side_of(0.0)
+        } else {
+            self.sides_used
+        }
+    }
+
+    /// The tangent of `side` (Gram–Schmidt against the first corner's normal), and whether it
+    /// passes the validity check there.
+    fn tangent(&self, side: usize, mesh: &Mesh<'_>) -> ([f32; 4], bool) {
+        let normal = mesh.normals[self.first_vertex as usize];
+        let check_normal = fallback::check_normal(normal);
+        let normal = Vec3::from(normal);
+        let s = self.s[side];
+        // normalize_or_zero is the reference's, which leaves a near-zero vector as it is for
+        // the fallback to find.
+        let tangent = normalize_or_zero((s - normal * normal.dot(s)).to_array());
+        let handedness = normal.cross(Vec3::from(tangent)).dot(self.t[side]);
+        let orientation_preserving = if handedness != 0.0 {
+            handedness > 0.0
+        } else {
+            side == 0
+        };
+        let t = encode(tangent, orientation_preserving);
+        (t, check_normal.is_some_and(|n| fallback::passes(&t, &n)))
+    }
+}
+
 /// Fast tangents as a split plan: invalid ones repaired (counted in `diagnostics`), `w` negated
 /// when `flip_w` is set.
+///
+/// On one thread the triangle pass adds each face into its vertices' sums as it goes, and a
+/// pass over the corners in triangle order hands out the tangents: no per-triangle faces, no
+/// table of corners by vertex. On several threads the faces are kept and each thread sums the
+/// vertices it owns from a corner table. Both add corners in ascending order and number the
+/// split's copies by vertex, so they give the same bits.
 pub(crate) fn generate(
     mesh: &Mesh<'_>,
     weighting: Weighting,
@@ -175,6 +262,101 @@ pub(crate) fn generate(
     check: &TriangleCheck<'_>,
     diagnostics: &mut Diagnostics,
 ) -> SplitPlan {
+    if parallel {
+        generate_by_vertex(mesh, weighting, flip_w, check, diagnostics)
+    } else {
+        generate_by_triangle(mesh, weighting, flip_w, check, diagnostics)
+    }
+}
+
+/// The one-thread path: sums scattered from the triangle pass.
+fn generate_by_triangle(
+    mesh: &Mesh<'_>,
+    weighting: Weighting,
+    flip_w: bool,
+    check: &TriangleCheck<'_>,
+    diagnostics: &mut Diagnostics,
+) -> SplitPlan {
+    // Between passes, a cancelled computation stops; its caller returns nothing of it.
+    let cancelled = || check.cancel.is_cancelled();
+    let weld = weld_mesh(mesh, false);
+    if cancelled() {
+        return SplitPlan::default();
+    }
+    let mut sums = vec![VertexSums::EMPTY; weld.class_count];
+    let mut signs = vec![0.0f32; mesh.triangle_count()];
+    let triangles = per_triangle_fold(
+        mesh,
+        check,
+        |columns: &mut FaceColumns, triangles: &mut TriangleColumns| {
+            let range = triangles.range();
+            let mut faces = [Face::default(); BATCH];
+            columns.compute(triangles, check, weighting, &mut faces);
+            for (triangle, face) in range.zip(&faces) {
+                signs[triangle] = face.sign;
+                for (corner, &vertex) in mesh.indices[3 * triangle..3 * triangle + 3]
+                    .iter()
+                    .enumerate()
+                {
+                    let class = weld.class_of_vertex[vertex as usize] as usize;
+                    sums[class].add(face, corner, vertex);
+                }
+            }
+        },
+    );
+    diagnostics.set_triangles(triangles);
+    if cancelled() {
+        return SplitPlan::default();
+    }
+
+    // Each vertex's tangents, one per side its corners take, worked out once.
+    let finished: Vec<([[f32; 4]; 2], [bool; 2])> = sums
+        .iter()
+        .map(|sums| {
+            let mut finished = ([[0.0; 4]; 2], [false; 2]);
+            let taken = sums.sides_taken();
+            for side in 0..2 {
+                if taken & (1 << side) != 0 {
+                    (finished.0[side], finished.1[side]) = sums.tangent(side, mesh);
+                }
+            }
+            finished
+        })
+        .collect();
+
+    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), false);
+    let mut copies = Copies::default();
+    let mut repairs = Vec::new();
+    for (triangle, &sign) in signs.iter().enumerate() {
+        for corner in 3 * triangle..3 * triangle + 3 {
+            let class = weld.class_of_vertex[mesh.indices[corner] as usize] as usize;
+            let side = sums[class].side_of(sign);
+            let (tangents, valid) = &finished[class];
+            let tangent = fallback::finish_corner(
+                mesh,
+                corner,
+                tangents[side],
+                valid[side],
+                flip_w,
+                &mut repairs,
+            );
+            shared.put(&mut copies, corner, tangent);
+        }
+    }
+    copies.reorder_by(|vertex, corner| (weld.class_of_vertex[vertex as usize], corner));
+    diagnostics.fallback_tangents = FallbackCounts::from_unordered(repairs);
+    shared.finish(vec![copies], mesh.normals, diagnostics)
+}
+
+/// The parallel path: faces kept per triangle, each vertex summed from its corners.
+fn generate_by_vertex(
+    mesh: &Mesh<'_>,
+    weighting: Weighting,
+    flip_w: bool,
+    check: &TriangleCheck<'_>,
+    diagnostics: &mut Diagnostics,
+) -> SplitPlan {
+    let parallel = true;
     let triangle_count = mesh.triangle_count();
     let mut faces = filled(triangle_count, parallel, Face::default);
     let triangles = per_triangle_pass(
@@ -197,7 +379,8 @@ pub(crate) fn generate(
     }
     let corner_class: Vec<u32> = mesh
         .indices
-        .iter()
+        .par_iter()
+        .with_min_len(8192)
         .map(|&v| weld.class_of_vertex[v as usize])
         .collect();
     let table = CornerTable::build_filtered(&corner_class, weld.class_count, |_| true, parallel);
@@ -206,58 +389,21 @@ pub(crate) fn generate(
     let evaluate =
         |class: usize, repairs: &mut Vec<(u32, Problem)>, put: &mut dyn FnMut(usize, [f32; 4])| {
             let corners = table.of(class);
-            let normal = mesh.normals[mesh.indices[corners[0] as usize] as usize];
-            let check_normal = fallback::check_normal(normal);
-            // [preserving, mirrored] sums of s and t.
-            let mut sums = [[Vec3::ZERO; 2]; 2];
-            // Bit s: some corner takes side s's tangent (see below).
-            let mut sides_used = 0u8;
-            let mut unsigned = false;
+            let mut sums = VertexSums::EMPTY;
             for &corner in corners {
-                let f = &faces[corner as usize / 3];
-                if f.sign == 0.0 {
-                    unsigned = true;
-                    continue;
-                }
-                let side = usize::from(f.sign < 0.0);
-                sides_used |= 1 << side;
-                let w = f.weights[corner as usize % 3];
-                sums[side][0] += Vec3::from(f.s) * w;
-                sums[side][1] += Vec3::from(f.t) * w;
-            }
-            let strongest = usize::from(sums[1][0].length_squared() > sums[0][0].length_squared());
-            if unsigned {
-                sides_used |= 1 << strongest;
+                let corner = corner as usize;
+                sums.add(&faces[corner / 3], corner % 3, mesh.indices[corner]);
             }
             // When every corner takes one tangent and it is valid, a corner whose vertex is the
             // previous corner's has just been given it.
-            let one_side = sides_used.count_ones() <= 1;
+            let one_side = sums.sides_taken().count_ones() <= 1;
             let mut previous = NONE;
             // At most two tangents per vertex, one per side, each worked out once.
             let mut finished: [Option<([f32; 4], bool)>; 2] = [None; 2];
             for &corner in corners {
                 let corner = corner as usize;
-                let f = &faces[corner / 3];
-                let side = if f.sign == 0.0 {
-                    strongest
-                } else {
-                    usize::from(f.sign < 0.0)
-                };
-                let (t, valid) = *finished[side].get_or_insert_with(|| {
-                    let normal = Vec3::from(normal);
-                    let s = sums[side][0];
-                    // Gram–Schmidt; normalize_or_zero is the reference's, which leaves a
-                    // near-zero vector as it is for the fallback to find.
-                    let tangent = normalize_or_zero((s - normal * normal.dot(s)).to_array());
-                    let handedness = normal.cross(Vec3::from(tangent)).dot(sums[side][1]);
-                    let orientation_preserving = if handedness != 0.0 {
-                        handedness > 0.0
-                    } else {
-                        side == 0
-                    };
-                    let t = encode(tangent, orientation_preserving);
-                    (t, check_normal.is_some_and(|n| fallback::passes(&t, &n)))
-                });
+                let side = sums.side_of(faces[corner / 3].sign);
+                let (t, valid) = *finished[side].get_or_insert_with(|| sums.tangent(side, mesh));
                 if one_side && valid {
                     let vertex = mesh.indices[corner];
                     if vertex == previous {
@@ -284,15 +430,11 @@ pub(crate) fn generate(
         }
         (copies, repairs)
     };
-    let results: Vec<(Copies, Vec<(u32, Problem)>)> = if parallel {
-        table
-            .chunks(rayon::current_num_threads() * 16)
-            .into_par_iter()
-            .map(run)
-            .collect()
-    } else {
-        vec![run(0..weld.class_count)]
-    };
+    let results: Vec<(Copies, Vec<(u32, Problem)>)> = table
+        .chunks(rayon::current_num_threads() * 16)
+        .into_par_iter()
+        .map(run)
+        .collect();
     let mut parts = Vec::with_capacity(results.len());
     let mut all_repairs = Vec::new();
     for (copies, repairs) in results {

@@ -42,6 +42,52 @@ pub(crate) struct Copies {
     corners: Vec<(u32, u32)>,
 }
 
+impl Copies {
+    /// Renumbers the copies in the order of `key(source vertex, the corner that made it)`. A
+    /// worker that put its corners in triangle order then numbers its copies as one that went
+    /// welded vertex by welded vertex (keyed by class, then corner), so the plan does not depend
+    /// on which way it went.
+    pub fn reorder_by<K: Ord>(&mut self, key: impl Fn(u32, u32) -> K) {
+        let count = self.source.len();
+        if count < 2 {
+            return;
+        }
+        // A copy is made by the first corner that uses it, and corners are listed as put.
+        let mut made_by = vec![NONE; count];
+        for &(corner, local) in &self.corners {
+            let maker = &mut made_by[local as usize];
+            if *maker == NONE {
+                *maker = corner;
+            }
+        }
+        let mut order: Vec<u32> = (0..count as u32).collect();
+        order.sort_by_key(|&local| key(self.source[local as usize], made_by[local as usize]));
+        let mut renumbered = vec![0u32; count];
+        for (new, &old) in order.iter().enumerate() {
+            renumbered[old as usize] = new as u32;
+        }
+        let renumber = |link: u32| {
+            if link == NONE {
+                NONE
+            } else {
+                renumbered[link as usize]
+            }
+        };
+        self.source = order.iter().map(|&old| self.source[old as usize]).collect();
+        self.tangent = order
+            .iter()
+            .map(|&old| self.tangent[old as usize])
+            .collect();
+        self.next = order
+            .iter()
+            .map(|&old| renumber(self.next[old as usize]))
+            .collect();
+        for (_, local) in &mut self.corners {
+            *local = renumbered[*local as usize];
+        }
+    }
+}
+
 #[inline]
 fn load4(place: &[AtomicU32; 4]) -> [f32; 4] {
     place

@@ -55,6 +55,11 @@ impl TriangleColumns {
         }
     }
 
+    /// The first gathered triangle, and how many were gathered.
+    pub fn range(&self) -> std::ops::Range<usize> {
+        self.start..self.start + self.len
+    }
+
     /// The normals of the gathered triangles' corners, as `n[corner][axis][k]`.
     #[inline(always)]
     pub fn gather_normals(&self, mesh: &Mesh<'_>, n: &mut [[[f32; BATCH]; 3]; 3]) {
@@ -138,6 +143,9 @@ impl<A: Send, B: Send> PerTriangle for (&mut [A], &mut [B]) {
     }
 }
 
+/// Triangles per run: the unit of parallel work, and how often a pass looks for cancellation.
+const RUN: usize = 16384;
+
 /// Runs a per-triangle pass over every triangle: `batch` fills `out`'s items for each gathered
 /// batch of triangles, given scratch `S` of its own per run of triangles, and the diagnostics'
 /// triangle checks are tallied alongside. Runs of triangles go to the thread pool when
@@ -149,7 +157,6 @@ pub(crate) fn per_triangle_pass<O: PerTriangle, S: Default>(
     parallel: bool,
     batch: impl Fn(&mut S, &mut TriangleColumns, O) + Sync,
 ) -> TriangleTallies {
-    const RUN: usize = 16384;
     let mut runs = Vec::with_capacity(out.len() / RUN + 1);
     let (mut first, mut rest) = (0, out);
     while rest.len() > RUN {
@@ -183,4 +190,31 @@ pub(crate) fn per_triangle_pass<O: PerTriangle, S: Default>(
     } else {
         runs.into_iter().map(run_pass).sum()
     }
+}
+
+/// A per-triangle pass on one thread in triangle order, for a method that folds each gathered
+/// batch into state shared by the whole mesh (sums per welded vertex) instead of writing
+/// per-triangle items: `batch` sees the batch ([`TriangleColumns::range`] says which triangles)
+/// and scratch `S`. Stops early, leaving the rest unfolded, once `check.cancel` is set.
+pub(crate) fn per_triangle_fold<S: Default>(
+    mesh: &Mesh<'_>,
+    check: &TriangleCheck<'_>,
+    mut batch: impl FnMut(&mut S, &mut TriangleColumns),
+) -> TriangleTallies {
+    let mut tallies = TriangleTallies::default();
+    let mut triangles = TriangleColumns::default();
+    let mut scratch = S::default();
+    let count = mesh.triangle_count();
+    let mut start = 0;
+    while start < count {
+        if start % RUN == 0 && check.cancel.is_cancelled() {
+            break;
+        }
+        let len = (count - start).min(BATCH);
+        triangles.gather(mesh, start, len);
+        batch(&mut scratch, &mut triangles);
+        triangles.tally(mesh, check, &mut tallies);
+        start += len;
+    }
+    tallies
 }
