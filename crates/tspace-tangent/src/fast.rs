@@ -377,12 +377,7 @@ fn generate_by_vertex(
     if check.cancel.is_cancelled() {
         return SplitPlan::default();
     }
-    let corner_class: Vec<u32> = mesh
-        .indices
-        .par_iter()
-        .with_min_len(8192)
-        .map(|&v| weld.class_of_vertex[v as usize])
-        .collect();
+    let corner_class = weld.corner_classes(mesh.indices, parallel);
     let table = CornerTable::build_filtered(&corner_class, weld.class_count, |_| true, parallel);
 
     // Per class: accumulate each handedness apart, then give every corner the sum of its side.

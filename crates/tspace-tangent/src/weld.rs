@@ -8,6 +8,7 @@
 use super::fill::filled;
 use super::math::Mesh;
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Sentinel for "no entry" in index arrays.
@@ -17,6 +18,29 @@ pub(crate) const NONE: u32 = u32::MAX;
 pub(crate) struct Weld {
     pub class_of_vertex: Vec<u32>,
     pub class_count: usize,
+}
+
+impl Weld {
+    /// The class of every corner of `indices`. Where no two vertices were welded, that is the
+    /// index itself (classes are numbered in order of first appearance, so with one vertex per
+    /// class, class `v` is vertex `v`), and `indices` is borrowed: on an indexed mesh, as
+    /// exported meshes nearly always are, that spares 4 bytes a corner and a pass.
+    pub fn corner_classes<'a>(&self, indices: &'a [u32], parallel: bool) -> Cow<'a, [u32]> {
+        if self.class_count == self.class_of_vertex.len() {
+            debug_assert!(self.class_of_vertex.iter().zip(0..).all(|(&c, v)| c == v));
+            return Cow::Borrowed(indices);
+        }
+        let class_of = |&v: &u32| self.class_of_vertex[v as usize];
+        Cow::Owned(if parallel {
+            indices
+                .par_iter()
+                .with_min_len(8192)
+                .map(class_of)
+                .collect()
+        } else {
+            indices.iter().map(class_of).collect()
+        })
+    }
 }
 
 #[inline]

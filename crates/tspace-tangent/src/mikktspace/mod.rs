@@ -99,16 +99,7 @@ pub(crate) fn generate(
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
-    let class_of = |&v: &u32| weld.class_of_vertex[v as usize];
-    let corner_class: Vec<u32> = if parallel {
-        mesh.indices
-            .par_iter()
-            .with_min_len(8192)
-            .map(class_of)
-            .collect()
-    } else {
-        mesh.indices.iter().map(class_of).collect()
-    };
+    let corner_class = weld.corner_classes(mesh.indices, parallel);
     let table = CornerTable::build_filtered(
         &corner_class,
         weld.class_count,
