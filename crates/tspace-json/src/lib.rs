@@ -285,6 +285,15 @@ impl Number {
             Some(rest) => (true, rest),
             None => (false, &*self.0),
         };
+        // The spelling nearly every index and count has, plain digits (19 always fit), is read
+        // at once: the general path below copies the digits into a new string, which on a
+        // scene of 200,000 accessors was a sixth of the whole run.
+        if (1..=19).contains(&unsigned.len()) && unsigned.bytes().all(|b| b.is_ascii_digit()) {
+            let value = unsigned
+                .bytes()
+                .fold(0u64, |value, digit| 10 * value + u64::from(digit - b'0'));
+            return Some((negative, value));
+        }
         let (mantissa, exponent) = match unsigned.find(['e', 'E']) {
             Some(i) => (unsigned.get(..i)?, unsigned.get(i + 1..)?),
             None => (unsigned, "0"),
@@ -2375,6 +2384,33 @@ mod tests {
     }
 
     proptest! {
+        /// Every spelling of an integer reads as that integer: plain digits (read at once) and
+        /// the spellings with a fraction or an exponent (read by the general path) agree.
+        #[test]
+        fn integers_read_the_same_however_spelled(value in any::<u64>(), negative in any::<bool>()) {
+            let sign = if negative { "-" } else { "" };
+            let digits = value.to_string();
+            let (head, tail) = digits.split_at(1);
+            let spellings = [
+                format!("{sign}{digits}"),
+                format!("{sign}{digits}.0"),
+                format!("{sign}{digits}e0"),
+                format!("{sign}{head}.{tail}0E{}", tail.len()),
+            ];
+            let text = format!("[{}]", spellings.join(","));
+            let doc = parse(&text).unwrap();
+            let expected_i64 = if negative {
+                0i64.checked_sub_unsigned(value)
+            } else {
+                i64::try_from(value).ok()
+            };
+            for (node, spelling) in doc.root().as_array().unwrap().iter().zip(&spellings) {
+                let expected_u64 = (!negative || value == 0).then_some(value);
+                prop_assert_eq!(node.as_u64(), expected_u64, "{}", spelling);
+                prop_assert_eq!(node.as_i64(), expected_i64, "{}", spelling);
+            }
+        }
+
         #[test]
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..256)) {
             if let Ok(doc) = Document::parse(&bytes) {
