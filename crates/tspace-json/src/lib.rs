@@ -905,7 +905,7 @@ impl<'a> Parser<'a> {
                     let members = self.members.get(base..).unwrap_or(&[]);
                     let starts = self.key_starts.get(base..).unwrap_or(&[]);
                     let left_out = self.left_out.get(left_out_base..).unwrap_or(&[]);
-                    if members.len() + left_out.len() > 1 {
+                    if members.len() + left_out.len() > 1 && may_repeat_keys(members, left_out) {
                         let mut keys: Vec<(&str, usize)> = members
                             .iter()
                             .map(|m| m.key.as_str())
@@ -1081,6 +1081,29 @@ impl<'a> Parser<'a> {
 /// Sorting beats hashing here: no hasher to seed against hostile keys, and no borrow of the
 /// member list while it is built. `starts` holds where each member's key starts.
 /// Fails on the first repeated key in the text, given each key with where it starts.
+/// Whether an object's keys may repeat: false, at once and without allocating, for the
+/// common small object whose keys all differ; [`check_unique_keys`] then has nothing to find.
+/// Keys are compared as decoded bytes, as that check compares them.
+fn may_repeat_keys(members: &[Member], left_out: &[(Text, usize)]) -> bool {
+    const COMPARED_PAIRWISE: usize = 16;
+    let count = members.len() + left_out.len();
+    if count > COMPARED_PAIRWISE {
+        return true;
+    }
+    let mut keys = [&[][..]; COMPARED_PAIRWISE];
+    let all = members
+        .iter()
+        .map(|m| &m.key)
+        .chain(left_out.iter().map(|(key, _)| key));
+    for (place, key) in keys.iter_mut().zip(all) {
+        *place = key.as_bytes();
+    }
+    let keys = &keys[..count];
+    keys.iter()
+        .enumerate()
+        .any(|(i, key)| keys[..i].contains(key))
+}
+
 fn check_unique_keys(keys: &mut [(&str, usize)]) -> Result<(), Fail> {
     keys.sort_unstable();
     // Of all the repeats, report the one that comes first in the text.
@@ -2384,6 +2407,51 @@ mod tests {
     }
 
     proptest! {
+        /// An object's first key that repeats an earlier one is the error, however many keys
+        /// it has (small objects are checked pairwise, large ones sorted), spelled with
+        /// escapes or not, in a whole parse and a pruned one.
+        #[test]
+        fn the_first_repeated_key_is_reported(
+            keys in proptest::collection::vec((0..24u8, any::<bool>()), 0..40),
+        ) {
+            let mut text = String::from("{");
+            let mut starts = Vec::new();
+            for (i, &(key, escaped)) in keys.iter().enumerate() {
+                if i > 0 {
+                    text.push(',');
+                }
+                starts.push(text.len());
+                let letter = char::from(b'a' + key);
+                if escaped {
+                    text.push_str(&format!("\"\\u{:04x}\":{i}", u32::from(letter)));
+                } else {
+                    text.push_str(&format!("\"{letter}\":{i}"));
+                }
+            }
+            text.push('}');
+            let expected = keys
+                .iter()
+                .enumerate()
+                .find(|&(i, (key, _))| keys[..i].iter().any(|(earlier, _)| earlier == key))
+                .map(|(i, &(key, _))| (starts[i], char::from(b'a' + key).to_string()));
+            let keep_all = |_: &[Text], _: &str| true;
+            let keep_none = |_: &[Text], _: &str| false;
+            for result in [
+                Document::parse(text.as_bytes()).map(|_| ()),
+                parse_pruned(text.as_bytes(), &keep_all).map(|_| ()),
+                parse_pruned(text.as_bytes(), &keep_none).map(|_| ()),
+            ] {
+                match (&expected, result) {
+                    (None, result) => prop_assert!(result.is_ok(), "{}", text),
+                    (Some((offset, key)), Err(e)) => {
+                        prop_assert_eq!(e.offset, *offset, "{}", text);
+                        prop_assert_eq!(e.kind, ParseErrorKind::DuplicateKey { key: key.clone() });
+                    }
+                    (Some(_), Ok(())) => prop_assert!(false, "accepted {}", text),
+                }
+            }
+        }
+
         /// Every spelling of an integer reads as that integer: plain digits (read at once) and
         /// the spellings with a fraction or an exponent (read by the general path) agree.
         #[test]
