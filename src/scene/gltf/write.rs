@@ -32,7 +32,6 @@ use crate::scene::report::{Dropped, Notice};
 use crate::scene::uri;
 use compress::{Encoded, Output, Prefiltered, Shape};
 use rayon::prelude::*;
-use std::collections::HashMap;
 use tspace_json::{self as json, Document, Editor, Node, Text};
 
 /// An accessor in the output: one of the input's, or one this write adds.
@@ -739,15 +738,13 @@ fn orphan_accessors(
             *r = true;
         }
     }
-    for members in final_primitive_members(root, changes).values() {
-        for (_, r) in members {
-            if let Ref::Old(i) = r
-                && let Some(a) = referenced_after.get_mut(*i)
-            {
-                *a = true;
-            }
+    visit_final_primitive_accessors(root, changes, |r| {
+        if let Ref::Old(i) = r
+            && let Some(a) = referenced_after.get_mut(i)
+        {
+            *a = true;
         }
-    }
+    });
     referenced_before
         .iter()
         .zip(&referenced_after)
@@ -1779,12 +1776,9 @@ fn part_of(bytes: &[u8], input: &[u8]) -> Part {
     }
 }
 
-/// Each edited primitive's accessor references after the edit, `(member path, accessor)`.
-fn final_primitive_members(
-    root: &Node,
-    changes: &Changes,
-) -> HashMap<(usize, usize), Vec<(String, Ref)>> {
-    let mut out = HashMap::new();
+/// Each accessor an edited primitive refers to after the edit (its attributes, indices and
+/// morph targets: those the edit sets, and the others it leaves), handed to `visit`.
+fn visit_final_primitive_accessors(root: &Node, changes: &Changes, mut visit: impl FnMut(Ref)) {
     let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
     for (&(m, p), edit) in changes.primitives.iter() {
         let Some(primitive) = meshes
@@ -1794,48 +1788,37 @@ fn final_primitive_members(
         else {
             continue;
         };
-        let mut members = Vec::new();
-        let merged = |original: Option<&Node>,
-                      set: &[(Text, Ref)],
-                      prefix: &str,
-                      members: &mut Vec<(String, Ref)>| {
+        let mut merged = |original: Option<&Node>, set: &[(Text, Ref)]| {
             for member in original.and_then(Node::as_object).unwrap_or(&[]) {
                 if set.iter().any(|(k, _)| *k == member.key) {
                     continue;
                 }
                 if let Some(i) = member.value.as_u64().and_then(|i| usize::try_from(i).ok()) {
-                    members.push((format!("{prefix}{}", member.key), Ref::Old(i)));
+                    visit(Ref::Old(i));
                 }
             }
-            for (k, r) in set {
-                members.push((format!("{prefix}{k}"), *r));
+            for &(_, r) in set {
+                visit(r);
             }
         };
-        merged(
-            primitive.get("attributes"),
-            &edit.attributes,
-            "attributes.",
-            &mut members,
-        );
-        match (
-            edit.indices,
-            primitive.get("indices").and_then(Node::as_u64),
-        ) {
-            (Some(r), _) => members.push(("indices".into(), r)),
-            (None, Some(i)) => members.push(("indices".into(), Ref::Old(i as usize))),
-            _ => {}
-        }
+        merged(primitive.get("attributes"), &edit.attributes);
         let targets = primitive
             .get("targets")
             .and_then(Node::as_array)
             .unwrap_or(&[]);
         for (t, target) in targets.iter().enumerate() {
             let set = edit.targets.get(t).map_or(&[][..], Vec::as_slice);
-            merged(Some(target), set, &format!("targets[{t}]."), &mut members);
+            merged(Some(target), set);
         }
-        out.insert((m, p), members);
+        match (
+            edit.indices,
+            primitive.get("indices").and_then(Node::as_u64),
+        ) {
+            (Some(r), _) => visit(r),
+            (None, Some(i)) => visit(Ref::Old(i as usize)),
+            _ => {}
+        }
     }
-    out
 }
 
 /// Sets the members the edit names and, when accessors were dropped, renumbers the ones it
