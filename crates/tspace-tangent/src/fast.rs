@@ -145,7 +145,7 @@ impl FaceColumns {
         let [sx, sy, sz] = &mut self.s;
         let [tx, ty, tz] = &mut self.t;
         let [w0, w1, w2] = &mut self.weights;
-        for k in 0..BATCH {
+        for k in 0..triangles.lanes() {
             let (p, uv) = triangles.corners(k);
             let f = face(&p, &uv, weighting);
             (sx[k], sy[k], sz[k]) = (f.s[0], f.s[1], f.s[2]);

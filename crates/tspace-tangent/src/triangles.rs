@@ -3,14 +3,17 @@
 //! the pass. Gathered into columns, [`BATCH`] triangles at a time, the same arithmetic runs as
 //! vectorized loops. The diagnostics' triangle checks ride along: they read the same corners.
 //!
-//! A method's loops always run over the whole batch; past the last triangle of a short batch
-//! they compute on stale inputs, whose results are never read.
+//! A method's loops run over the batch's [`TriangleColumns::lanes`], whole vectors; past the last
+//! triangle of a short batch they compute on stale inputs, whose results are never read.
 
 use super::diagnostics::{TriangleCheck, TriangleTallies};
 use super::math::Mesh;
 
 /// Triangles per batch.
 pub(crate) const BATCH: usize = 64;
+
+/// The widest vector's lanes (AVX-512, 32-bit): a short batch is computed in multiples of it.
+const LANES: usize = 16;
 
 /// The corners of a batch of triangles, in columns.
 pub(crate) struct TriangleColumns {
@@ -60,6 +63,14 @@ impl TriangleColumns {
         self.start..self.start + self.len
     }
 
+    /// How many of the batch's places a method's loops run over: the gathered triangles,
+    /// rounded up to a whole vector. A mesh of one triangle (as glTF files made of thousands of
+    /// one-triangle primitives have) then costs one vector's work, not a batch's sixty-four.
+    #[inline(always)]
+    pub fn lanes(&self) -> usize {
+        self.len.next_multiple_of(LANES).min(BATCH)
+    }
+
     /// The normals of the gathered triangles' corners, as `n[corner][axis][k]`.
     #[inline(always)]
     pub fn gather_normals(&self, mesh: &Mesh<'_>, n: &mut [[[f32; BATCH]; 3]; 3]) {
@@ -95,7 +106,7 @@ impl TriangleColumns {
     /// compiled with the vector features of the method's loop that calls it.
     #[inline(always)]
     pub fn check(&mut self, check: &TriangleCheck<'_>) {
-        for k in 0..BATCH {
+        for k in 0..self.lanes() {
             let (p, uv) = self.corners(k);
             self.events[k] = check.events(&p, &uv);
         }

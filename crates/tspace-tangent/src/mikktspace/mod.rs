@@ -270,23 +270,25 @@ impl FrameColumns {
         flags: &mut [u8],
     ) {
         triangles.gather_normals(mesh, &mut self.normal);
+        let lanes = triangles.lanes();
         let [sx, sy, sz] = &mut self.s;
         let [tx, ty, tz] = &mut self.t;
-        for k in 0..BATCH {
+        for k in 0..lanes {
             let (p, uv) = triangles.corners(k);
             let (frame, flag) = triangle_frame(&p, &uv);
             (sx[k], sy[k], sz[k]) = (frame.s[0], frame.s[1], frame.s[2]);
             (tx[k], ty[k], tz[k]) = (frame.t[0], frame.t[1], frame.t[2]);
             self.flags[k] = flag;
         }
-        self.corner_columns::<0>(triangles);
-        self.corner_columns::<1>(triangles);
-        self.corner_columns::<2>(triangles);
-        acos_slice(&self.cos, &mut self.angle);
+        self.corner_columns::<0>(triangles, lanes);
+        self.corner_columns::<1>(triangles, lanes);
+        self.corner_columns::<2>(triangles, lanes);
         for corner in 0..3 {
-            let angle = &self.angle[corner * BATCH..(corner + 1) * BATCH];
+            let places = corner * BATCH..corner * BATCH + lanes;
+            acos_slice(&self.cos[places.clone()], &mut self.angle[places.clone()]);
+            let angle = &self.angle[places];
             for column in &mut self.corner_s[corner] {
-                for (x, &angle) in column.iter_mut().zip(angle) {
+                for (x, &angle) in column[..lanes].iter_mut().zip(angle) {
                     *x *= angle;
                 }
             }
@@ -314,14 +316,14 @@ impl FrameColumns {
     /// [`corner_arithmetic`] for corner `CORNER` of every triangle of the batch (a constant, so
     /// that the loop indexes no array by a variable).
     #[inline(always)]
-    fn corner_columns<const CORNER: usize>(&mut self, triangles: &TriangleColumns) {
+    fn corner_columns<const CORNER: usize>(&mut self, triangles: &TriangleColumns, lanes: usize) {
         let [sx, sy, sz] = &self.s;
         let [tx, ty, tz] = &self.t;
         let [nx, ny, nz] = &self.normal[CORNER];
         let [csx, csy, csz] = &mut self.corner_s[CORNER];
         let [ctx, cty, ctz] = &mut self.corner_t[CORNER];
         let cos = &mut self.cos[CORNER * BATCH..(CORNER + 1) * BATCH];
-        for k in 0..BATCH {
+        for k in 0..lanes {
             let (p, _) = triangles.corners(k);
             let frame = Frame {
                 s: [sx[k], sy[k], sz[k]],
