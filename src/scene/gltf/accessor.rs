@@ -1022,7 +1022,7 @@ pub fn read_indices_json(
 
 fn within(index: usize, error: AccessorError) -> AccessorError {
     AccessorError::In {
-        path: format!("accessors[{index}]"),
+        path: Item("accessors", index).to_string(),
         error: Box::new(error),
     }
 }
@@ -1030,24 +1030,24 @@ fn within(index: usize, error: AccessorError) -> AccessorError {
 /// `name[index]`: a place in the document, spelled only when an error names it (reading an
 /// accessor made three strings for its error messages, on a scene of 200,000 accessors read
 /// twice each).
-struct Item(&'static str, usize);
+struct Item<'a>(&'a str, usize);
 
-impl std::fmt::Display for Item {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl fmt::Display for Item<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}[{}]", self.0, self.1)
     }
 }
 
 /// `place.key`.
-struct Within<'a>(&'a dyn std::fmt::Display, &'static str);
+struct Within<'a>(&'a dyn fmt::Display, &'static str);
 
-impl std::fmt::Display for Within<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl fmt::Display for Within<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}.{}", self.0, self.1)
     }
 }
 
-fn json_error(path: &dyn std::fmt::Display, key: &str, problem: &str) -> AccessorError {
+fn json_error(path: &dyn fmt::Display, key: &str, problem: &str) -> AccessorError {
     AccessorError::Json {
         path: format!("{path}.{key}"),
         problem: problem.into(),
@@ -1065,7 +1065,7 @@ fn array_item<'n>(root: &'n Node, key: &str, index: usize) -> Result<&'n Node, A
     match items.get(index) {
         Some(item) if item.as_object().is_some() => Ok(item),
         Some(item) => Err(AccessorError::Json {
-            path: format!("{key}[{index}]"),
+            path: Item(key, index).to_string(),
             problem: format!("must be an object, not {}", item.kind_name()),
         }),
         None => Err(AccessorError::Json {
@@ -1082,7 +1082,7 @@ fn buffer_view<'a>(
     root: &Node,
     index: usize,
     buffers: &[&'a [u8]],
-    referenced_at: &dyn std::fmt::Display,
+    referenced_at: &dyn fmt::Display,
 ) -> Result<BufferView<'a>, AccessorError> {
     let view = match array_item(root, "bufferViews", index) {
         Err(AccessorError::Json { problem, .. }) if problem.contains("does not exist") => {
@@ -1123,7 +1123,7 @@ fn buffer_view<'a>(
 
 fn optional_usize(
     object: &Node,
-    path: &dyn std::fmt::Display,
+    path: &dyn fmt::Display,
     key: &str,
 ) -> Result<Option<usize>, AccessorError> {
     let Some(value) = object.get(key) else {
@@ -1148,7 +1148,7 @@ fn optional_usize(
 
 fn required_usize(
     object: &Node,
-    path: &dyn std::fmt::Display,
+    path: &dyn fmt::Display,
     key: &str,
 ) -> Result<usize, AccessorError> {
     optional_usize(object, path, key)?.ok_or_else(|| json_error(path, key, "is missing"))
@@ -1156,7 +1156,7 @@ fn required_usize(
 
 fn required_str<'n>(
     object: &'n Node,
-    path: &dyn std::fmt::Display,
+    path: &dyn fmt::Display,
     key: &str,
 ) -> Result<&'n str, AccessorError> {
     match object.get(key) {
@@ -1173,7 +1173,7 @@ fn required_str<'n>(
 
 fn required_component_type(
     object: &Node,
-    path: &dyn std::fmt::Display,
+    path: &dyn fmt::Display,
     key: &str,
 ) -> Result<ComponentType, AccessorError> {
     let code = required_usize(object, path, key)?;
