@@ -87,6 +87,7 @@ mod math;
 mod mikktspace;
 mod normals;
 mod output;
+mod prefetch;
 mod split;
 mod triangles;
 mod vectors;

@@ -7,6 +7,7 @@
 
 use super::fill::filled;
 use super::math::Mesh;
+use super::prefetch::prefetch;
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -397,18 +398,17 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
     let mut firsts = F::default();
     let mut class_of_vertex = vec![NONE; vertex_count];
     let mut class_count = 0u32;
-    // Hash a block of vertices first and touch their buckets: independent loads that the CPU
-    // overlaps, where the insertion loop below would wait for one cache miss at a time.
+    // Hash a block of vertices first and prefetch their buckets: the misses overlap, where the
+    // insertion loop below would wait for one at a time. (A prefetch rather than a load, which
+    // when it misses holds up everything after it until it arrives.)
     const BLOCK: usize = 32;
     let mut home = [0usize; BLOCK];
     for block_start in (0..vertex_count).step_by(BLOCK) {
         let block = block_start..(block_start + BLOCK).min(vertex_count);
-        let mut touched = 0u32;
         for (v, slot) in block.clone().zip(&mut home) {
             *slot = key.hash(v) as usize & mask;
-            touched ^= table[*slot];
+            prefetch(&table[*slot]);
         }
-        std::hint::black_box(touched);
         for (v, &slot) in block.zip(&home) {
             // A vertex holding NaN gets a class of its own but no slot.
             let mut slot = if key.self_equal(v) { slot } else { NO_SLOT };

@@ -44,6 +44,7 @@ use super::math::{
     normalize_or_zero_branchless, not_zero, reject, same_position, scale, sub,
 };
 use super::output::{Copies, SharedSplit};
+use super::prefetch::prefetch;
 use super::split::SplitPlan;
 use super::triangles::{BATCH, TriangleColumns, per_triangle_pass};
 use super::vectors::widest_vectors;
@@ -932,6 +933,10 @@ struct Run {
     flags: Vec<u8>,
 }
 
+/// How many corners ahead [`Run::gather`] asks for a corner's record: enough to cover a miss
+/// to memory at the loop's pace.
+const PREFETCH_AHEAD: usize = 16;
+
 /// Above this many corners a run is closed (a vertex with more corners gets one of its own).
 const RUN_CORNERS: usize = 512;
 
@@ -948,6 +953,11 @@ impl Run {
         let ends = &mut self.ends[..len];
         let corner_flags = &mut self.flags[..len];
         for (at, &corner) in corners.iter().enumerate() {
+            if let Some(&ahead) = corners.get(at + PREFETCH_AHEAD) {
+                let (triangle, i) = (ahead as usize / 3, ahead as usize % 3);
+                prefetch(&context.contributions[triangle][i]);
+                prefetch(&context.corner_class[3 * triangle]);
+            }
             let (triangle, i) = (corner as usize / 3, corner as usize % 3);
             contributions[at] = context.contributions[triangle][i];
             let classes = &context.corner_class[3 * triangle..3 * triangle + 3];
