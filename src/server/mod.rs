@@ -273,6 +273,7 @@ pub async fn start(config: ServerConfig) -> std::io::Result<Running> {
     let listener = TcpListener::bind(config.addr).await?;
     let addr = listener.local_addr()?;
     let app = Arc::new(App::new(config)?);
+    memory::keep_freed_memory_for_reuse();
     let (sender, receiver) = oneshot::channel::<()>();
     let service = router(Arc::clone(&app));
     let listener = stall::GuardedListener {
