@@ -7,8 +7,10 @@
 //! DamagedHelmet (3.8 MB), one client posting it 200 times with curl: 650–2,100 page faults a
 //! request, and the kernel zeroing and unmapping those pages was a fifth of the server's CPU.
 //! With fixed thresholds (blocks under 8 MiB from the heaps, a heap's top trimmed once 16 MiB
-//! lie free there) the same loop makes 1–5 faults a request, and the server spends 4.9–6.8 ms
-//! of CPU a request instead of 8.2–9.4. Larger blocks are mapped and unmapped whole, as before.
+//! lie free there) the same loop makes 1–5 faults a request, and the server spends 4.9–7.3 ms
+//! of CPU a request instead of 8.2–10.2; in the load test the capacity rose 7% and the
+//! goodput at twice it 10% (docs/benchmarks.md). Larger blocks are mapped and unmapped whole,
+//! as before.
 //!
 //! The thresholds bound what is kept. A body refused at the limit (a compression bomb decoded
 //! up to `--body-limit`) leaves that much freed in the arena of the connection thread that read
