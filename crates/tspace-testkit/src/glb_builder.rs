@@ -73,6 +73,13 @@ impl Builder {
         self.accessors.len() - 1
     }
 
+    /// An image stored in the buffer (its bytes are not checked: tspace passes images
+    /// through); its index in `images`, which the caller puts in the document.
+    pub fn image(&mut self, bytes: &[u8], mime_type: &str) -> Value {
+        let view = self.view(bytes, None);
+        json!({"bufferView": view, "mimeType": mime_type})
+    }
+
     /// Normalized unsigned bytes, VEC3 (3-byte elements, so the view has a 4-byte stride).
     pub fn colors_u8(&mut self, values: &[[u8; 3]]) -> usize {
         let bytes: Vec<u8> = values.iter().flat_map(|c| [c[0], c[1], c[2], 0]).collect();
@@ -113,6 +120,13 @@ pub fn texture_stub(doc: &mut Value) {
 /// A normal-mapped, gently waved unit grid of `2 n²` triangles with u32 indices, as a GLB: the
 /// stand-in for a real scene in service tests and benches.
 pub fn grid(n: usize) -> Vec<u8> {
+    let (b, mut doc) = grid_document(n);
+    texture_stub(&mut doc);
+    b.glb(doc)
+}
+
+/// [`grid`]'s buffer and document, before its texture is added.
+fn grid_document(n: usize) -> (Builder, Value) {
     let mut positions = Vec::with_capacity((n + 1) * (n + 1) * 3);
     let mut normals = Vec::with_capacity(positions.capacity());
     let mut uvs = Vec::with_capacity((n + 1) * (n + 1) * 2);
@@ -137,13 +151,31 @@ pub fn grid(n: usize) -> Vec<u8> {
     let normal = b.floats(&normals, "VEC3", false);
     let uv = b.floats(&uvs, "VEC2", false);
     let index = b.indices_u32(&indices);
-    let mut doc = json!({
+    let doc = json!({
         "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal,
             "TEXCOORD_0": uv}, "indices": index, "material": 0}]}],
         "materials": normal_mapped(0),
     });
-    texture_stub(&mut doc);
+    (b, doc)
+}
+
+/// [`grid`] whose normal map is a stored image of `image_bytes` (noise, not a decodable PNG):
+/// the shape of most real scenes, whose files are mostly textures, such as DamagedHelmet.
+pub fn grid_with_image(n: usize, image_bytes: usize) -> Vec<u8> {
+    let (mut b, mut doc) = grid_document(n);
+    // A fixed xorshift stream: incompressible, and the same every run.
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let noise: Vec<u8> = (0..image_bytes)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state as u8
+        })
+        .collect();
+    doc["images"] = json!([b.image(&noise, "image/png")]);
+    doc["textures"] = json!([{"source": 0}]);
     b.glb(doc)
 }
 

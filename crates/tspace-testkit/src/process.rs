@@ -71,6 +71,20 @@ impl ServerProcess {
         kb * 1024
     }
 
+    /// The page faults the process has taken that needed no disk read (`minflt` in
+    /// `/proc/<pid>/stat`): nearly all of them fresh memory being touched for the first time.
+    pub fn page_faults(&self) -> u64 {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", self.pid()))
+            .expect("/proc stat of the server");
+        // After the command name, which is in parentheses and may hold spaces, come the state
+        // (field 3) and then the others in order: minflt is field 10.
+        let rest = &stat[stat.rfind(')').expect("the command name's end") + 1..];
+        rest.split_whitespace()
+            .nth(7)
+            .and_then(|v| v.parse().ok())
+            .expect("minflt in /proc stat")
+    }
+
     /// A blocking `POST` on a fresh connection; the whole answer, or what came of it when the
     /// connection failed.
     pub fn post(&self, path: &str, body: &[u8], content_type: &str) -> Vec<u8> {
