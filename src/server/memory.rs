@@ -19,8 +19,9 @@
 //! this: two bombs refused one after the other grew the peak RSS by 63 MiB and then 130 MiB at
 //! a 64 MiB limit, and the server went on holding 63 MiB. `malloc_trim` cannot release the
 //! free top of a thread's heap, which the trim threshold bounds: with blocks up to 32 MiB from
-//! the heaps and 64 MiB kept at their tops (faster still for scenes of tens of megabytes), two
-//! bombs left 34–95 MiB behind; with these thresholds, 1–2 MiB.
+//! the heaps and 64 MiB kept at their tops (tried first; it would also have kept the buffers of
+//! scenes of tens of megabytes), two bombs left 34–95 MiB behind; with these thresholds,
+//! 1–2 MiB.
 //!
 //! Tried before and not kept: a fixed *small* mapping threshold (128 KiB or 1 MiB), which
 //! kept every large buffer out of the heaps and halved the capacity in the load test, since
