@@ -5,8 +5,10 @@
 //!
 //! `cargo bench --bench whole_path`. Scenes: a generated UV sphere of 2M triangles (56 MB GLB),
 //! the JSON-heavy scene of 50,000 one-triangle primitives with their own accessors (35.7 MB,
-//! `tspace_testkit::json_heavy`) and the same without NORMAL (27.3 MB), the corpus's
-//! DamagedHelmet when `../shared/corpus` is present.
+//! `tspace_testkit::json_heavy`) and the same without NORMAL (27.3 MB), 100,000 primitives that
+//! share one triangle's accessors (5.8 MB, `json_heavy_shared`), the corpus's DamagedHelmet
+//! when `../shared/corpus` is present. Each scene is also sent once to a fresh `tspace serve`
+//! process, whose peak RSS is the service's side of the JSON-heavy target (the "body").
 //! Settings:
 //! - `TSPACE_BENCH_QUICK=1`: a 200k sphere and few samples (a smoke test of the bench itself);
 //! - `TSPACE_BENCH_SECONDS` (default 5): how long each HTTP load level runs;
@@ -26,6 +28,7 @@ use tspace::config::ServerConfig;
 use tspace::scene::SceneOptions;
 use tspace::scene::gltf::load::NoResources;
 use tspace::scene::input::{self, InputKind};
+use tspace_testkit::process::{ServerProcess, status_line};
 use tspace_testkit::shapes;
 
 #[allow(dead_code)]
@@ -74,6 +77,11 @@ impl Config {
             filter,
             http_seconds,
         }
+    }
+
+    /// Fresh servers per scene: each run's peak is one request's.
+    fn service_runs(&self) -> usize {
+        if self.quick { 1 } else { 3 }
     }
 
     fn rounds(&self, triangles: usize) -> usize {
@@ -138,6 +146,31 @@ fn json_heavy(dir: &Path, quick: bool, normals: bool) -> Scene {
     write_input(&geometry, &with_normals);
     write_input(&file, &bytes);
     let mesh = corpus::load(&name, &geometry).expect("the JSON-heavy scene reads back");
+    Scene {
+        name,
+        file,
+        kind: InputKind::Glb,
+        bytes,
+        mesh,
+    }
+}
+
+/// Primitives that all name one triangle's accessors: one computation, so the cost is the
+/// primitives' entries alone (document, report, edits). The cores run on the one triangle
+/// computed (every primitive's copy, stacked into one mesh, would be 100,000 triangles on one
+/// spot: three vertices of 100,000 corners each, which no real mesh has).
+fn json_heavy_shared(dir: &Path, quick: bool) -> Scene {
+    let primitives = if quick { 10_000 } else { 100_000 };
+    let bytes = tspace_testkit::json_heavy::json_heavy_shared(primitives);
+    let name = format!(
+        "JSON-heavy, one geometry shared by {}",
+        thousands(primitives)
+    );
+    let file = dir.join("json-heavy-shared.glb");
+    write_input(&file, &bytes);
+    let geometry = dir.join("json-heavy-shared-geometry.glb");
+    write_input(&geometry, &tspace_testkit::json_heavy::json_heavy_shared(1));
+    let mesh = corpus::load(&name, &geometry).expect("the shared JSON-heavy scene reads back");
     Scene {
         name,
         file,
@@ -276,6 +309,7 @@ fn time_core(contender: Contender, mesh: &BenchMesh) -> f64 {
 struct Measured {
     cli: Vec<f64>,
     cli_peak: Option<u64>,
+    service: Vec<ServiceRun>,
     phases: Vec<Phases>,
     tspace_core: Vec<f64>,
     meshopt: Vec<f64>,
@@ -293,6 +327,7 @@ fn measure(scene: &Scene, dir: &Path, config: &Config) -> Measured {
     let mut m = Measured {
         cli: Vec::new(),
         cli_peak: None,
+        service: Vec::new(),
         phases: Vec::new(),
         tspace_core: Vec::new(),
         meshopt: Vec::new(),
@@ -321,7 +356,46 @@ fn measure(scene: &Scene, dir: &Path, config: &Config) -> Measured {
             }
         }
     }
+    for _ in 0..config.service_runs() {
+        m.service.push(run_service(scene));
+    }
     m
+}
+
+/// One request to a fresh `tspace serve` process, as an operator would run it.
+struct ServiceRun {
+    seconds: f64,
+    /// The server's peak RSS (`VmHWM`) before the request and after it, in bytes.
+    idle: u64,
+    peak: u64,
+}
+
+/// Sends the scene once to a new server with the default settings and reads the server's own
+/// high-water mark from /proc. A fresh process each time, so that the peak is this request's
+/// and not an earlier one's (a server keeps its allocator's memory between requests).
+fn run_service(scene: &Scene) -> ServiceRun {
+    let server = ServerProcess::start(env!("CARGO_BIN_EXE_tspace"), &[]);
+    let idle = server.memory("VmHWM") as u64;
+    let content_type = match scene.kind {
+        InputKind::Glb => "model/gltf-binary",
+        InputKind::Gltf => "model/gltf+json",
+        InputKind::Obj => "model/obj",
+    };
+    let started = Instant::now();
+    let answer = server.post("/v1/tangents", &scene.bytes, content_type);
+    let seconds = started.elapsed().as_secs_f64();
+    let status = status_line(&answer);
+    assert!(
+        status.starts_with("HTTP/1.1 200"),
+        "the service answered {} with {status}",
+        scene.name
+    );
+    let peak = server.memory("VmHWM") as u64;
+    ServiceRun {
+        seconds,
+        idle,
+        peak,
+    }
 }
 
 fn verdict(met: bool) -> &'static str {
@@ -365,9 +439,14 @@ fn report(scene: &Scene, m: &Measured, csv: &mut String) {
     // Everything but the core: the whole in-process path less the core alone on the same mesh.
     let scene_layer = in_process - core;
     println!(
-        "\n{} ({} triangles, {:.1} MB in)",
+        "\n{} ({} triangle{}, {:.1} MB in)",
         scene.name,
         thousands(scene.mesh.triangle_count()),
+        if scene.mesh.triangle_count() == 1 {
+            ""
+        } else {
+            "s"
+        },
         scene.bytes.len() as f64 / 1e6
     );
     println!("  tspace process (whole process)  {:>9.1} ms", ms(cli));
@@ -384,6 +463,35 @@ fn report(scene: &Scene, m: &Measured, csv: &mut String) {
         println!(
             "    peak RSS                      {:>9.1} MB ({times:.1}x the input{target})",
             peak as f64 / 1e6,
+        );
+    }
+    let service = (!m.service.is_empty()).then(|| {
+        (
+            median(m.service.iter().map(|r| r.seconds).collect()),
+            m.service.iter().map(|r| r.peak).max().unwrap_or(0),
+        )
+    });
+    if let Some((seconds, peak)) = service {
+        let idle = m.service.iter().map(|r| r.idle).min().unwrap_or(0);
+        let times = peak as f64 / scene.bytes.len() as f64;
+        let target = if scene.name.starts_with("JSON-heavy") {
+            format!(
+                "; target <= {TARGET_JSON_HEAVY_PEAK}x: {}",
+                verdict(times <= TARGET_JSON_HEAVY_PEAK)
+            )
+        } else {
+            String::new()
+        };
+        println!(
+            "  the service, one request to a fresh `tspace serve` ({} run{}):",
+            m.service.len(),
+            if m.service.len() == 1 { "" } else { "s" }
+        );
+        println!("    POST /v1/tangents             {:>9.1} ms", ms(seconds));
+        println!(
+            "    server peak RSS               {:>9.1} MB ({times:.1}x the body{target}; {:.1} MB idle)",
+            peak as f64 / 1e6,
+            idle as f64 / 1e6,
         );
     }
     println!("  the same in this process, by step:");
@@ -435,7 +543,7 @@ fn report(scene: &Scene, m: &Measured, csv: &mut String) {
         ))
     );
     csv.push_str(&format!(
-        "{},{},{},{:.3},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
+        "{},{},{},{:.3},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{}\n",
         scene.name.replace(',', ""),
         scene.mesh.triangle_count(),
         scene.bytes.len(),
@@ -449,6 +557,8 @@ fn report(scene: &Scene, m: &Measured, csv: &mut String) {
         ms(bevy),
         over_meshopt,
         over_bevy,
+        service.map_or(String::new(), |(seconds, _)| format!("{:.3}", ms(seconds))),
+        service.map_or(String::new(), |(_, peak)| peak.to_string()),
     ));
 }
 
@@ -603,13 +713,13 @@ fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
                 (http - direct - echo) * 1e3,
             );
             csv.push_str(&format!(
-                "http {} {clients} clients,,,{:.3},,{:.3},,,,,,{ratio:.3},\n",
+                "http {} {clients} clients,,,{:.3},,{:.3},,,,,,{ratio:.3},,,\n",
                 scene.name,
                 http * 1e3,
                 direct * 1e3
             ));
             csv.push_str(&format!(
-                "echo {} {clients} clients,,,{:.3},,,,,,,,,\n",
+                "echo {} {clients} clients,,,{:.3},,,,,,,,,,,\n",
                 scene.name,
                 echo * 1e3,
             ));
@@ -633,6 +743,9 @@ fn main() {
     if wanted("JSON-heavy without normals") {
         scenes.push(json_heavy(&dir, config.quick, false));
     }
+    if wanted("JSON-heavy, one geometry shared") {
+        scenes.push(json_heavy_shared(&dir, config.quick));
+    }
     if wanted("DamagedHelmet") {
         match helmet(&dir) {
             Some(scene) => scenes.push(scene),
@@ -640,7 +753,7 @@ fn main() {
         }
     }
     let mut csv = String::from(
-        "scene,triangles,input_bytes,cli_ms,cli_peak_rss_bytes,in_process_ms,compute_ms,scene_layer_ms,tspace_core_ms,meshopt_compatible_ms,bevy_ms,whole_over_meshopt,whole_over_bevy\n",
+        "scene,triangles,input_bytes,cli_ms,cli_peak_rss_bytes,in_process_ms,compute_ms,scene_layer_ms,tspace_core_ms,meshopt_compatible_ms,bevy_ms,whole_over_meshopt,whole_over_bevy,service_ms,service_peak_rss_bytes\n",
     );
     for scene in &scenes {
         let measured = measure(scene, &dir, &config);
