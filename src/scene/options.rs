@@ -246,6 +246,12 @@ pub struct SceneOptions {
     /// repeats it, instead of as one vector: for a caller that writes it out while it still
     /// holds the input (the command line). An OBJ's, whose GLB is made inside, comes back whole.
     pub in_pieces: bool,
+    /// Called once the input's parse tree of a large document is freed, before the output's
+    /// JSON is put together (see `gltf::write::RELEASE_FROM_JSON_BYTES`). That JSON is one
+    /// block too large to come from the tree's freed memory, so a long-running caller that
+    /// keeps freed memory for reuse (the service, see `server::memory`) holds both at once
+    /// unless it hands the tree's back here. `None` keeps it.
+    pub release_freed_memory: Option<fn()>,
 }
 
 impl Default for SceneOptions {
@@ -266,6 +272,7 @@ impl Default for SceneOptions {
             cancel: Cancel::default(),
             layouts: false,
             in_pieces: false,
+            release_freed_memory: None,
         }
     }
 }

@@ -438,6 +438,7 @@ fn scene_options(app: &App, query: &SceneOptions, write: bool) -> SceneOptions {
             ..SceneLimits::default()
         },
         cancel: Cancel::new(),
+        release_freed_memory: Some(super::memory::give_back_freed_memory),
         ..query.clone()
     }
 }

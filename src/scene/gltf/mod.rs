@@ -850,6 +850,7 @@ fn write_scene<'a>(
             options.compress,
             resources,
             pieces_of,
+            options.release_freed_memory,
         )?;
         report.input_bytes += written.embedded_image_bytes;
         report.dropped = written.dropped;
