@@ -473,10 +473,11 @@ fn peak_memory_stays_bounded_by_the_body_size() {
         after_hostile >> 20
     );
     // JSON-heavy scenes cost far more per byte: every value becomes a parse-tree node and every
-    // primitive a report entry. This bound records where that stands; bringing it down is open
-    // work (see README, Service).
+    // primitive a report entry and an edit: 23-24 times here (2026-11-25). The bound records
+    // where that stands, with room for the allocator's variance (docs/operations.md, "Memory a
+    // request needs").
     assert!(
-        json_ratio < 150.0,
+        json_ratio < 40.0,
         "a JSON-heavy scene's peak grew {json_ratio:.0} times its size"
     );
 }
