@@ -398,6 +398,21 @@ fn run_service(scene: &Scene) -> ServiceRun {
     }
 }
 
+/// A peak in multiples of the scene's size, and for a JSON-heavy scene the verdict on the
+/// issue's bound.
+fn peak_against_size(scene: &Scene, peak: u64) -> (f64, String) {
+    let times = peak as f64 / scene.bytes.len() as f64;
+    let target = if scene.name.starts_with("JSON-heavy") {
+        format!(
+            "; target <= {TARGET_JSON_HEAVY_PEAK}x: {}",
+            verdict(times <= TARGET_JSON_HEAVY_PEAK)
+        )
+    } else {
+        String::new()
+    };
+    (times, target)
+}
+
 fn verdict(met: bool) -> &'static str {
     if met { "met" } else { "NOT met" }
 }
@@ -451,15 +466,7 @@ fn report(scene: &Scene, m: &Measured, csv: &mut String) {
     );
     println!("  tspace process (whole process)  {:>9.1} ms", ms(cli));
     if let Some(peak) = m.cli_peak {
-        let times = peak as f64 / scene.bytes.len() as f64;
-        let target = if scene.name.starts_with("JSON-heavy") {
-            format!(
-                "; target <= {TARGET_JSON_HEAVY_PEAK}x: {}",
-                verdict(times <= TARGET_JSON_HEAVY_PEAK)
-            )
-        } else {
-            String::new()
-        };
+        let (times, target) = peak_against_size(scene, peak);
         println!(
             "    peak RSS                      {:>9.1} MB ({times:.1}x the input{target})",
             peak as f64 / 1e6,
@@ -473,15 +480,7 @@ fn report(scene: &Scene, m: &Measured, csv: &mut String) {
     });
     if let Some((seconds, peak)) = service {
         let idle = m.service.iter().map(|r| r.idle).min().unwrap_or(0);
-        let times = peak as f64 / scene.bytes.len() as f64;
-        let target = if scene.name.starts_with("JSON-heavy") {
-            format!(
-                "; target <= {TARGET_JSON_HEAVY_PEAK}x: {}",
-                verdict(times <= TARGET_JSON_HEAVY_PEAK)
-            )
-        } else {
-            String::new()
-        };
+        let (times, target) = peak_against_size(scene, peak);
         println!(
             "  the service, one request to a fresh `tspace serve` ({} run{}):",
             m.service.len(),
