@@ -148,6 +148,15 @@ impl<'a> SharedSplit<'a> {
         copies.corners.push((corner as u32, new));
     }
 
+    /// Gives input vertex `v` its tangent, where the caller knows it is the only one any corner
+    /// of `v` will be put: a plain store, without the read [`SharedSplit::put`] makes to find
+    /// an earlier tangent (a cache miss per vertex where vertices are visited out of order, as
+    /// in a triangle soup). Corners put afterwards with the same tangent keep the vertex.
+    #[inline]
+    pub fn set_only_tangent(&self, v: usize, tangent: [f32; 4]) {
+        store4(&self.vertex_tangents[v], tangent);
+    }
+
     /// Numbers the duplicates (`parts` in order) after the input vertices, gives unused vertices
     /// a valid tangent, and fills the split and handedness counts of `diagnostics`.
     pub fn finish(

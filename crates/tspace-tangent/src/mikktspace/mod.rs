@@ -83,15 +83,17 @@ pub(crate) fn generate(
         return SplitPlan::default();
     }
 
-    let mut contributions = filled(triangle_count, parallel, || [Contribution::ZERO; 3]);
+    // The class of every corner; degenerate triangles stay out of the per-vertex lists.
+    let corner_class = weld.corner_classes(mesh.indices, parallel);
+    let mut records = filled(triangle_count, parallel, || TriangleRecord::ZERO);
     let mut flags = vec![0u8; triangle_count];
     let triangles = per_triangle_pass(
         mesh,
         check,
-        (&mut contributions[..], &mut flags[..]),
+        (&mut records[..], &mut flags[..]),
         parallel,
-        |columns: &mut Box<FrameColumns>, triangles, (contributions, flags)| {
-            columns.compute(mesh, triangles, check, contributions, flags);
+        |columns: &mut Box<FrameColumns>, triangles, (records, flags)| {
+            columns.compute(mesh, triangles, check, &corner_class, records, flags);
         },
     );
     if cancelled() {
@@ -99,8 +101,6 @@ pub(crate) fn generate(
     }
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
-    // The class of every corner; degenerate triangles stay out of the per-vertex lists.
-    let corner_class = weld.corner_classes(mesh.indices, parallel);
     let table = CornerTable::build_filtered(
         &corner_class,
         weld.class_count,
@@ -111,11 +111,14 @@ pub(crate) fn generate(
     if cancelled() {
         return SplitPlan::default();
     }
+    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     let context = Context {
         mesh,
         corner_class: &corner_class,
-        contributions: &contributions,
+        classes_are_vertices: weld.class_count == mesh.vertex_count(),
+        records: &records,
         table: &table,
+        shared: &shared,
         flip_w,
     };
     // Degenerate corners, listed by vertex: they copy the raw result of their vertex's first
@@ -133,7 +136,6 @@ pub(crate) fn generate(
         degenerate.sort_unstable();
     }
 
-    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     let (mut parts, mut repairs, touched) = if parallel {
         let pieces = table.chunks(rayon::current_num_threads() * 16);
         let results: Vec<(Piece, Copies)> = pieces
@@ -207,11 +209,32 @@ struct Contribution {
 }
 
 impl Contribution {
-    /// A constant, so that filling an array with it is a plain store (building a `Default`
-    /// value on the stack and copying it out stalled on every element).
     const ZERO: Contribution = Contribution {
         weighted_s: [0.0; 3],
         t_direction: [0; 3],
+    };
+}
+
+/// What the per-vertex pass reads of a triangle, in one cache line: its corners'
+/// contributions, the classes of its corners (the other ends of each corner's edges) and its
+/// flags. The pass visits corners vertex by vertex, so each read lands somewhere else in the
+/// triangle array; one line a corner instead of one in each of three arrays (contributions,
+/// classes, flags) halves the misses it waits on.
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct TriangleRecord {
+    contributions: [Contribution; 3],
+    classes: [u32; 3],
+    flags: u8,
+}
+
+impl TriangleRecord {
+    /// A constant, so that filling an array with it is a plain store (building a `Default`
+    /// value on the stack and copying it out stalled on every element).
+    const ZERO: TriangleRecord = TriangleRecord {
+        contributions: [Contribution::ZERO; 3],
+        classes: [0; 3],
+        flags: 0,
     };
 }
 
@@ -249,14 +272,15 @@ impl Default for FrameColumns {
 impl FrameColumns {
     widest_vectors! {
         /// Frames, flags, corner contributions and check events of the gathered `triangles`;
-        /// the contributions and flags go to `contributions` and `flags` (one per triangle of
-        /// the batch).
+        /// their records (with the classes of their corners, from `corner_class`) go to
+        /// `records` and their flags to `flags` (one per triangle of the batch).
         fn compute / compute_avx512 / compute_avx2 (
             &mut self,
             mesh: &Mesh<'_>,
             triangles: &mut TriangleColumns,
             check: &TriangleCheck<'_>,
-            contributions: &mut [[Contribution; 3]],
+            corner_class: &[u32],
+            records: &mut [TriangleRecord],
             flags: &mut [u8],
         ) => compute_portable
     }
@@ -267,7 +291,8 @@ impl FrameColumns {
         mesh: &Mesh<'_>,
         triangles: &mut TriangleColumns,
         check: &TriangleCheck<'_>,
-        contributions: &mut [[Contribution; 3]],
+        corner_class: &[u32],
+        records: &mut [TriangleRecord],
         flags: &mut [u8],
     ) {
         triangles.gather_normals(mesh, &mut self.normal);
@@ -303,13 +328,20 @@ impl FrameColumns {
                 t_direction: [tx[k] as i8, ty[k] as i8, tz[k] as i8],
             }
         };
-        for (k, (out, flag)) in contributions
+        let first_corner = 3 * triangles.range().start;
+        let classes = corner_class[first_corner..].chunks_exact(3);
+        for (k, ((out, flag), classes)) in records
             .iter_mut()
             .zip(flags.iter_mut())
+            .zip(classes)
             .enumerate()
             .take(BATCH)
         {
-            *out = [contribution(0, k), contribution(1, k), contribution(2, k)];
+            *out = TriangleRecord {
+                contributions: [contribution(0, k), contribution(1, k), contribution(2, k)],
+                classes: [classes[0], classes[1], classes[2]],
+                flags: self.flags[k],
+            };
             *flag = self.flags[k];
         }
     }
@@ -406,8 +438,12 @@ fn triangle_frame(p: &[[f32; 3]; 3], tx: &[[f32; 2]; 3]) -> (Frame, u8) {
 struct Context<'a> {
     mesh: &'a Mesh<'a>,
     corner_class: &'a [u32],
-    contributions: &'a [[Contribution; 3]],
+    /// Whether no two vertices welded, so that a class is the one input vertex of that number
+    /// (and `corner_class` is the index buffer).
+    classes_are_vertices: bool,
+    records: &'a [TriangleRecord],
     table: &'a CornerTable,
+    shared: &'a SharedSplit<'a>,
     flip_w: bool,
 }
 
@@ -476,7 +512,7 @@ impl Context<'_> {
                 end += 1;
             }
             let slots = first_slot..self.table.offsets[end] as usize;
-            run.gather(self, flags, &self.table.corners[slots]);
+            run.gather(self, &self.table.corners[slots]);
             for class in start..end {
                 let corners = self.table.of(class);
                 let offset = self.table.offsets[class] as usize - first_slot;
@@ -495,7 +531,8 @@ impl Context<'_> {
                         class,
                         any & ORIENT_PRESERVING,
                         &run.ends[slots.clone()],
-                        &run.contributions[slots],
+                        &run.contributions[slots.clone()],
+                        &run.vertices[slots],
                         degenerate,
                         &mut piece.repairs,
                         put,
@@ -533,6 +570,7 @@ impl Context<'_> {
         orientation: u8,
         ends: &[[u32; 2]],
         contributions: &[Contribution],
+        vertices: &[u32],
         degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
@@ -575,17 +613,25 @@ impl Context<'_> {
             return false;
         }
         let raw = encode(normalize_or_zero(sum), orientation != 0);
-        let normal = self.mesh.normals[self.mesh.indices[corners[0] as usize] as usize];
+        let first_vertex = if self.classes_are_vertices {
+            class
+        } else {
+            vertices[0] as usize
+        };
+        let normal = self.mesh.normals[first_vertex];
         if fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, &n)) {
-            // Valid: every corner gets the same finished tangent, which a corner whose vertex is
-            // the previous corner's has just been given.
+            // Valid: every corner gets the same finished tangent, and no other vertex has
+            // corners of these input vertices, so each is given it once, as its only tangent.
             let tangent = fallback::with_w_convention(raw, self.flip_w);
-            let mut previous = NONE;
-            for &corner in corners {
-                let vertex = self.mesh.indices[corner as usize];
-                if vertex != previous {
-                    put(corner as usize, tangent);
-                    previous = vertex;
+            if self.classes_are_vertices {
+                self.shared.set_only_tangent(class, tangent);
+            } else {
+                let mut previous = NONE;
+                for &vertex in vertices {
+                    if vertex != previous {
+                        self.shared.set_only_tangent(vertex as usize, tangent);
+                        previous = vertex;
+                    }
                 }
             }
         } else {
@@ -933,6 +979,8 @@ struct Run {
     ends: Vec<[u32; 2]>,
     /// Its triangle's flags.
     flags: Vec<u8>,
+    /// Its input vertex, where classes are not the input vertices themselves.
+    vertices: Vec<u32>,
 }
 
 /// How many corners ahead [`Run::gather`] asks for a corner's record: enough to cover a miss
@@ -943,28 +991,36 @@ const PREFETCH_AHEAD: usize = 16;
 const RUN_CORNERS: usize = 512;
 
 impl Run {
-    fn gather(&mut self, context: &Context<'_>, flags: &[u8], corners: &[u32]) {
+    fn gather(&mut self, context: &Context<'_>, corners: &[u32]) {
         let len = corners.len();
         // Only grown, never cleared: every place up to `len` is written below.
         if self.flags.len() < len {
             self.contributions.resize(len, Contribution::ZERO);
             self.ends.resize(len, [0; 2]);
             self.flags.resize(len, 0);
+            self.vertices.resize(len, 0);
         }
         let contributions = &mut self.contributions[..len];
         let ends = &mut self.ends[..len];
         let corner_flags = &mut self.flags[..len];
+        if !context.classes_are_vertices {
+            let indices = context.mesh.indices;
+            for (at, (vertex, &corner)) in self.vertices.iter_mut().zip(corners).enumerate() {
+                if let Some(&ahead) = corners.get(at + PREFETCH_AHEAD) {
+                    prefetch(&indices[ahead as usize]);
+                }
+                *vertex = indices[corner as usize];
+            }
+        }
         for (at, &corner) in corners.iter().enumerate() {
             if let Some(&ahead) = corners.get(at + PREFETCH_AHEAD) {
-                let (triangle, i) = (ahead as usize / 3, ahead as usize % 3);
-                prefetch(&context.contributions[triangle][i]);
-                prefetch(&context.corner_class[3 * triangle]);
+                prefetch(&context.records[ahead as usize / 3]);
             }
             let (triangle, i) = (corner as usize / 3, corner as usize % 3);
-            contributions[at] = context.contributions[triangle][i];
-            let classes = &context.corner_class[3 * triangle..3 * triangle + 3];
-            ends[at] = [classes[PREV[i]], classes[NEXT[i]]];
-            corner_flags[at] = flags[triangle];
+            let record = &context.records[triangle];
+            contributions[at] = record.contributions[i];
+            ends[at] = [record.classes[PREV[i]], record.classes[NEXT[i]]];
+            corner_flags[at] = record.flags;
         }
     }
 }
