@@ -143,8 +143,8 @@ fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
     weld_in_shards(key, parallel)
 }
 
-/// Up to this many slots (512 KiB), one table stays in a core's L2 cache and beats the shards'
-/// extra passes, even on two threads (a 70k-vertex mesh welds about 7% faster than in shards;
+/// Up to this many slots (1 MiB with their tags), one table stays in a core's L2 or nearby L3
+/// cache and beats the shards' extra passes, even on two threads (a 70k-vertex mesh welds about 7% faster than in shards;
 /// a 100k-vertex one, whose table would be twice the size, about 15% slower). Beyond it, the
 /// table is split into shards (see [`weld_in_shards`]).
 const ONE_TABLE_MAX_BUCKETS: usize = 1 << 17;
@@ -348,6 +348,8 @@ trait Firsts: Default {
     fn add(&mut self, key: &Key<'_>, v: usize);
     /// Whether vertex `v` equals the first vertex of `class`.
     fn same(&self, key: &Key<'_>, class: u32, v: usize) -> bool;
+    /// Asks for what [`Firsts::same`] will read of `class`, where it is worth asking.
+    fn prefetch(&self, class: u32);
 }
 
 /// The first vertex's index: comparing reads its attributes from the mesh. For meshes whose
@@ -365,6 +367,10 @@ impl Firsts for FirstVertices {
     fn same(&self, key: &Key<'_>, class: u32, v: usize) -> bool {
         key.equal(self.0[class as usize] as usize, v)
     }
+
+    /// Nothing: where vertices are mostly distinct, few slots hold a class to compare with.
+    #[inline]
+    fn prefetch(&self, _: u32) {}
 }
 
 /// A copy of the first vertex's key, for meshes that repeat most vertices (triangle soups):
@@ -386,6 +392,13 @@ impl Firsts for FirstKeys {
         // Combined without branching, as in `Key::equal`.
         a.iter().zip(b).fold(true, |same, (x, y)| same & (x == y))
     }
+
+    #[inline]
+    fn prefetch(&self, class: u32) {
+        if let Some(first) = self.0.get(class as usize) {
+            prefetch(first);
+        }
+    }
 }
 
 /// One hash table over all the vertices: for meshes small enough that it stays in cache.
@@ -393,8 +406,10 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
     let vertex_count = key.positions.len();
     let buckets = one_table_buckets(vertex_count);
     let mask = buckets - 1;
-    // Each slot holds a class.
-    let mut table = vec![NONE; buckets];
+    // Each slot holds a class and the high half of its first vertex's hash (its tag): a probe
+    // that meets another class is then nearly always decided by the tags, without reading
+    // that class's vertex from wherever it lies in the mesh (a cache miss in most collisions).
+    let mut table = vec![(NONE, 0u32); buckets];
     let mut firsts = F::default();
     let mut class_of_vertex = vec![NONE; vertex_count];
     let mut class_count = 0u32;
@@ -402,24 +417,33 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
     // insertion loop below would wait for one at a time. (A prefetch rather than a load, which
     // when it misses holds up everything after it until it arrives.)
     const BLOCK: usize = 32;
-    let mut home = [0usize; BLOCK];
+    let mut home = [(0usize, 0u32); BLOCK];
     for block_start in (0..vertex_count).step_by(BLOCK) {
         let block = block_start..(block_start + BLOCK).min(vertex_count);
-        for (v, slot) in block.clone().zip(&mut home) {
-            *slot = key.hash(v) as usize & mask;
+        for (v, (slot, tag)) in block.clone().zip(&mut home) {
+            let hash = key.hash(v);
+            (*slot, *tag) = (hash as usize & mask, (hash >> 32) as u32);
             prefetch(&table[*slot]);
         }
-        for (v, &slot) in block.zip(&home) {
+        // Where most vertices repeat, most home slots already hold the class they will be
+        // compared with: ask for its first key too, while the slots' misses are under way.
+        for &(slot, _) in &home[..block.len()] {
+            let (class, _) = table[slot];
+            if class != NONE {
+                firsts.prefetch(class);
+            }
+        }
+        for (v, &(slot, tag)) in block.zip(&home) {
             // A vertex holding NaN gets a class of its own but no slot.
             let mut slot = if key.self_equal(v) { slot } else { NO_SLOT };
             let mut probe = 0;
             while slot != NO_SLOT {
-                let class = table[slot];
+                let (class, held_tag) = table[slot];
                 if class == NONE {
-                    table[slot] = class_count;
+                    table[slot] = (class_count, tag);
                     break;
                 }
-                if firsts.same(key, class, v) {
+                if held_tag == tag && firsts.same(key, class, v) {
                     class_of_vertex[v] = class;
                     break;
                 }
