@@ -85,15 +85,15 @@ pub(crate) fn generate(
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
     let corner_class = weld.corner_classes(mesh.indices, parallel);
-    let mut records = filled(triangle_count, parallel, || TriangleRecord::ZERO);
+    let mut contributions = filled(triangle_count, parallel, || [Contribution::ZERO; 3]);
     let mut flags = vec![0u8; triangle_count];
     let triangles = per_triangle_pass(
         mesh,
         check,
-        (&mut records[..], &mut flags[..]),
+        (&mut contributions[..], &mut flags[..]),
         parallel,
-        |columns: &mut Box<FrameColumns>, triangles, (records, flags)| {
-            columns.compute(mesh, triangles, check, &corner_class, records, flags);
+        |columns: &mut Box<FrameColumns>, triangles, (contributions, flags)| {
+            columns.compute(mesh, triangles, check, contributions, flags);
         },
     );
     if cancelled() {
@@ -101,12 +101,18 @@ pub(crate) fn generate(
     }
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
-    let table = CornerTable::build_filtered(
-        &corner_class,
-        weld.class_count,
-        |c| flags[c / 3] & DEGENERATE == 0,
-        parallel,
-    );
+    // Nearly every mesh has no degenerate triangle: its table is built without reading a
+    // triangle's flags for each corner.
+    let table = if has_degenerate {
+        CornerTable::build_filtered(
+            &corner_class,
+            weld.class_count,
+            |c| flags[c / 3] & DEGENERATE == 0,
+            parallel,
+        )
+    } else {
+        CornerTable::build_filtered(&corner_class, weld.class_count, |_| true, parallel)
+    };
 
     if cancelled() {
         return SplitPlan::default();
@@ -116,7 +122,7 @@ pub(crate) fn generate(
         mesh,
         corner_class: &corner_class,
         classes_are_vertices: weld.class_count == mesh.vertex_count(),
-        records: &records,
+        contributions: &contributions,
         table: &table,
         shared: &shared,
         flip_w,
@@ -209,32 +215,11 @@ struct Contribution {
 }
 
 impl Contribution {
+    /// A constant, so that filling an array with it is a plain store (building a `Default`
+    /// value on the stack and copying it out stalled on every element).
     const ZERO: Contribution = Contribution {
         weighted_s: [0.0; 3],
         t_direction: [0; 3],
-    };
-}
-
-/// What the per-vertex pass reads of a triangle, in one cache line: its corners'
-/// contributions, the classes of its corners (the other ends of each corner's edges) and its
-/// flags. The pass visits corners vertex by vertex, so each read lands somewhere else in the
-/// triangle array; one line a corner instead of one in each of three arrays (contributions,
-/// classes, flags) halves the misses it waits on.
-#[derive(Clone, Copy)]
-#[repr(C, align(64))]
-struct TriangleRecord {
-    contributions: [Contribution; 3],
-    classes: [u32; 3],
-    flags: u8,
-}
-
-impl TriangleRecord {
-    /// A constant, so that filling an array with it is a plain store (building a `Default`
-    /// value on the stack and copying it out stalled on every element).
-    const ZERO: TriangleRecord = TriangleRecord {
-        contributions: [Contribution::ZERO; 3],
-        classes: [0; 3],
-        flags: 0,
     };
 }
 
@@ -272,15 +257,14 @@ impl Default for FrameColumns {
 impl FrameColumns {
     widest_vectors! {
         /// Frames, flags, corner contributions and check events of the gathered `triangles`;
-        /// their records (with the classes of their corners, from `corner_class`) go to
-        /// `records` and their flags to `flags` (one per triangle of the batch).
+        /// the contributions and flags go to `contributions` and `flags` (one per triangle of
+        /// the batch).
         fn compute / compute_avx512 / compute_avx2 (
             &mut self,
             mesh: &Mesh<'_>,
             triangles: &mut TriangleColumns,
             check: &TriangleCheck<'_>,
-            corner_class: &[u32],
-            records: &mut [TriangleRecord],
+            contributions: &mut [[Contribution; 3]],
             flags: &mut [u8],
         ) => compute_portable
     }
@@ -291,8 +275,7 @@ impl FrameColumns {
         mesh: &Mesh<'_>,
         triangles: &mut TriangleColumns,
         check: &TriangleCheck<'_>,
-        corner_class: &[u32],
-        records: &mut [TriangleRecord],
+        contributions: &mut [[Contribution; 3]],
         flags: &mut [u8],
     ) {
         triangles.gather_normals(mesh, &mut self.normal);
@@ -328,20 +311,13 @@ impl FrameColumns {
                 t_direction: [tx[k] as i8, ty[k] as i8, tz[k] as i8],
             }
         };
-        let first_corner = 3 * triangles.range().start;
-        let classes = corner_class[first_corner..].chunks_exact(3);
-        for (k, ((out, flag), classes)) in records
+        for (k, (out, flag)) in contributions
             .iter_mut()
             .zip(flags.iter_mut())
-            .zip(classes)
             .enumerate()
             .take(BATCH)
         {
-            *out = TriangleRecord {
-                contributions: [contribution(0, k), contribution(1, k), contribution(2, k)],
-                classes: [classes[0], classes[1], classes[2]],
-                flags: self.flags[k],
-            };
+            *out = [contribution(0, k), contribution(1, k), contribution(2, k)];
             *flag = self.flags[k];
         }
     }
@@ -441,7 +417,7 @@ struct Context<'a> {
     /// Whether no two vertices welded, so that a class is the one input vertex of that number
     /// (and `corner_class` is the index buffer).
     classes_are_vertices: bool,
-    records: &'a [TriangleRecord],
+    contributions: &'a [[Contribution; 3]],
     table: &'a CornerTable,
     shared: &'a SharedSplit<'a>,
     flip_w: bool,
@@ -512,7 +488,7 @@ impl Context<'_> {
                 end += 1;
             }
             let slots = first_slot..self.table.offsets[end] as usize;
-            run.gather(self, &self.table.corners[slots]);
+            run.gather(self, flags, &self.table.corners[slots]);
             for class in start..end {
                 let corners = self.table.of(class);
                 let offset = self.table.offsets[class] as usize - first_slot;
@@ -991,7 +967,7 @@ const PREFETCH_AHEAD: usize = 16;
 const RUN_CORNERS: usize = 512;
 
 impl Run {
-    fn gather(&mut self, context: &Context<'_>, corners: &[u32]) {
+    fn gather(&mut self, context: &Context<'_>, flags: &[u8], corners: &[u32]) {
         let len = corners.len();
         // Only grown, never cleared: every place up to `len` is written below.
         if self.flags.len() < len {
@@ -1014,13 +990,15 @@ impl Run {
         }
         for (at, &corner) in corners.iter().enumerate() {
             if let Some(&ahead) = corners.get(at + PREFETCH_AHEAD) {
-                prefetch(&context.records[ahead as usize / 3]);
+                let (triangle, i) = (ahead as usize / 3, ahead as usize % 3);
+                prefetch(&context.contributions[triangle][i]);
+                prefetch(&context.corner_class[3 * triangle]);
             }
             let (triangle, i) = (corner as usize / 3, corner as usize % 3);
-            let record = &context.records[triangle];
-            contributions[at] = record.contributions[i];
-            ends[at] = [record.classes[PREV[i]], record.classes[NEXT[i]]];
-            corner_flags[at] = record.flags;
+            contributions[at] = context.contributions[triangle][i];
+            let classes = &context.corner_class[3 * triangle..3 * triangle + 3];
+            ends[at] = [classes[PREV[i]], classes[NEXT[i]]];
+            corner_flags[at] = flags[triangle];
         }
     }
 }
