@@ -15,13 +15,14 @@
 //! [`Method::MikkTSpace`] (the default) is **bit-identical to the MikkTSpace reference**, as
 //! ported byte for byte by [`bevy_mikktspace`](https://crates.io/crates/bevy_mikktspace) 1.0 with
 //! its `corrected-edge-sorting` fix, on every corner where the reference emits a valid tangent,
-//! and several times faster (12–20 times `bevy_mikktspace` on one thread; see the project's
-//! `docs/benchmarks.md`). The crate's `tests/reference.rs` and the project's oracle tests check
-//! this corner by corner. Where the reference emits a broken tangent (unassigned `(1, 0, 0)`,
-//! zero, NaN, or off the normal's plane), this crate emits a valid one and counts the corner in
-//! [`Diagnostics::fallback_tangents`] with the reason. Welding, orientation groups, projection and
-//! angle weighting are the reference's; its global edge sort, recursion and O(k²) sub-group
-//! search are replaced by work on the short list of corners around each welded vertex.
+//! and several times faster (10–20 times `bevy_mikktspace` on one thread, by mesh and machine;
+//! see the project's `docs/benchmarks.md`). The crate's `tests/reference.rs` and the project's
+//! oracle tests check this corner by corner. Where the reference emits a broken tangent
+//! (unassigned `(1, 0, 0)`, zero, NaN, or off the normal's plane), this crate emits a valid one
+//! and counts the corner in [`Diagnostics::fallback_tangents`] with the reason. Welding,
+//! orientation groups, projection and angle weighting are the reference's; its global edge sort,
+//! recursion and O(k²) sub-group search are replaced by work on the short list of corners around
+//! each welded vertex.
 //!
 //! Whatever the method, every emitted tangent is finite, unit length (within 1e-5), orthogonal
 //! to its normalized normal (within 1e-4), with `w` exactly ±1.
