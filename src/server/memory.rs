@@ -35,7 +35,7 @@
 //! every request's buffers were then faulted in afresh.
 
 /// Blocks under this size come from the allocator's heaps; larger ones are mapped whole.
-const MAPPED_FROM: i32 = 8 << 20;
+pub(super) const MAPPED_FROM: usize = 8 << 20;
 
 /// A heap's top is trimmed once this much lies free there.
 const TRIMMED_FROM: i32 = 16 << 20;
@@ -46,7 +46,7 @@ pub fn keep_freed_memory_for_reuse() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only changes the allocator's thresholds; it is thread-safe.
     unsafe {
-        libc::mallopt(libc::M_MMAP_THRESHOLD, MAPPED_FROM);
+        libc::mallopt(libc::M_MMAP_THRESHOLD, MAPPED_FROM as i32);
         libc::mallopt(libc::M_TRIM_THRESHOLD, TRIMMED_FROM);
     }
 }
