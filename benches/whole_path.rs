@@ -624,9 +624,23 @@ async fn start_echo() -> String {
     format!("http://{addr}/echo")
 }
 
+/// How a client sends the scene: as the whole body (`curl --data-binary`) or as a part of a
+/// multipart form (`curl -F file=@…`), which the service reads by another path.
+#[derive(Clone, Copy, PartialEq)]
+enum Upload {
+    Raw,
+    Multipart,
+}
+
 /// p50 latency of a POST of the scene to `url` with `clients` concurrent clients for
 /// `seconds`.
-async fn http_p50(url: &str, bytes: &bytes::Bytes, clients: usize, seconds: u64) -> f64 {
+async fn http_p50(
+    url: &str,
+    bytes: &bytes::Bytes,
+    upload: Upload,
+    clients: usize,
+    seconds: u64,
+) -> f64 {
     let deadline = Instant::now() + Duration::from_secs(seconds);
     let tasks: Vec<_> = (0..clients)
         .map(|_| {
@@ -636,13 +650,24 @@ async fn http_p50(url: &str, bytes: &bytes::Bytes, clients: usize, seconds: u64)
                 let mut latencies = Vec::new();
                 while Instant::now() < deadline {
                     let started = Instant::now();
-                    let response = http
-                        .post(&url)
-                        .header("content-type", "model/gltf-binary")
-                        .body(body.clone())
-                        .send()
-                        .await
-                        .expect("the request is answered");
+                    let request = match upload {
+                        Upload::Raw => http
+                            .post(&url)
+                            .header("content-type", "model/gltf-binary")
+                            .body(body.clone()),
+                        Upload::Multipart => {
+                            // With its length, so that the form declares a Content-Length as
+                            // curl's does.
+                            let part = reqwest::multipart::Part::stream_with_length(
+                                body.clone(),
+                                body.len() as u64,
+                            )
+                            .file_name("scene.glb");
+                            let form = reqwest::multipart::Form::new().part("file", part);
+                            http.post(&url).multipart(form)
+                        }
+                    };
+                    let response = request.send().await.expect("the request is answered");
                     assert_eq!(response.status(), 200, "the service answered");
                     let answer = response.bytes().await.expect("the answer is read");
                     drop(std::hint::black_box(answer));
@@ -694,8 +719,10 @@ fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
                 .await
                 .expect("in-process callers")
             };
-            let echo = http_p50(&echo_url, &body, clients, config.http_seconds).await;
-            let http = http_p50(&url, &body, clients, config.http_seconds).await;
+            let seconds = config.http_seconds;
+            let echo = http_p50(&echo_url, &body, Upload::Raw, clients, seconds).await;
+            let http = http_p50(&url, &body, Upload::Raw, clients, seconds).await;
+            let form = http_p50(&url, &body, Upload::Multipart, clients, seconds).await;
             let ratio = http / direct;
             println!(
                 "  {clients} client(s): HTTP {:>7.2} ms, in process {:>7.2} ms, ratio {ratio:.2} (target <= {TARGET_HTTP_OVER_IN_PROCESS}: {})",
@@ -711,11 +738,23 @@ fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
                 http / (direct + echo),
                 (http - direct - echo) * 1e3,
             );
+            println!(
+                "      as a multipart form (curl -F) {:>7.2} ms, ratio {:.2}",
+                form * 1e3,
+                form / direct,
+            );
             csv.push_str(&format!(
                 "http {} {clients} clients,,,{:.3},,{:.3},,,,,,{ratio:.3},,,\n",
                 scene.name,
                 http * 1e3,
                 direct * 1e3
+            ));
+            csv.push_str(&format!(
+                "http multipart {} {clients} clients,,,{:.3},,{:.3},,,,,,{:.3},,,\n",
+                scene.name,
+                form * 1e3,
+                direct * 1e3,
+                form / direct
             ));
             csv.push_str(&format!(
                 "echo {} {clients} clients,,,{:.3},,,,,,,,,,,\n",

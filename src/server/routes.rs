@@ -20,7 +20,7 @@ use crate::scene::report::Report;
 use crate::scene::uri::{PartSet, percent_decode};
 use crate::scene::{OutputFormat, Processed, SceneLimits, SceneOptions};
 use axum::body::{Body, Bytes};
-use axum::extract::multipart::MultipartError;
+use axum::extract::multipart::{Field, MultipartError};
 use axum::extract::{FromRequest, Multipart, RawQuery, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -175,6 +175,7 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
             .await
             .map_err(|e| Problem::new(ProblemCode::MalformedMultipart, e.body_text()))?;
         let mut fields: Vec<(String, Option<String>, Option<String>, Bytes)> = Vec::new();
+        let mut read_so_far = 0usize;
         loop {
             let field = match multipart.next_field().await {
                 Ok(Some(field)) => field,
@@ -184,10 +185,15 @@ async fn read_upload(app: &App, request: Request) -> Result<Upload, Problem> {
             let field_name = field.name().unwrap_or("").to_owned();
             let file_name = field.file_name().map(str::to_owned);
             let part_type = field.content_type().map(str::to_owned);
-            let bytes = match field.bytes().await {
+            let room = declared_length
+                .and_then(|n| usize::try_from(n).ok())
+                .unwrap_or(0)
+                .saturating_sub(read_so_far);
+            let bytes = match whole_field(field, room).await {
                 Ok(bytes) => bytes,
                 Err(e) => return Err(multipart_problem(&e, limit)),
             };
+            read_so_far += bytes.len();
             fields.push((field_name, file_name, part_type, bytes));
         }
         // The scene is the field named file, scene or model; else the first .gltf, .glb or
@@ -266,6 +272,22 @@ async fn whole_body(body: Body, limit: usize) -> Result<Bytes, axum::BoxError> {
             whole.extend_from_slice(&data);
         }
     }
+    Ok(Bytes::from(whole))
+}
+
+/// A multipart field's data, read into one buffer as its chunks arrive.
+///
+/// The buffer starts as [`whole_body`]'s does, at what is left of the length the body declares
+/// (`room`; no part can be longer), capped at the mapping threshold, for the same reason:
+/// `Field::bytes` grows its buffer from nothing, and eight clients uploading one at a time
+/// copy their buffers at every doubling. A part shorter than its buffer gives the rest back
+/// (in place: a heap block shrinks where it lies, a mapped one is remapped).
+async fn whole_field(mut field: Field<'_>, room: usize) -> Result<Bytes, MultipartError> {
+    let mut whole = Vec::with_capacity(room.min(super::memory::MAPPED_FROM));
+    while let Some(chunk) = field.chunk().await? {
+        whole.extend_from_slice(&chunk);
+    }
+    whole.shrink_to_fit();
     Ok(Bytes::from(whole))
 }
 
