@@ -213,6 +213,83 @@ fn one_input_with_o_gets_the_report_object_itself() {
     assert!(!t.path().join("in/negative_indices.tspace.glb").exists());
 }
 
+/// `--report` and `-o` naming a pipe (or a device such as `/dev/null`) write into it and leave
+/// it in place: a file renamed over it would replace it (as root, `/dev/null` itself).
+#[cfg(unix)]
+#[test]
+fn a_pipe_named_as_output_is_written_not_replaced() {
+    use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+    let t = TempDir::new("pipe");
+    t.copy_fixture("negative_indices", "in");
+    let pipes = ["report.pipe", "scene.pipe"].map(|name| t.path().join(name));
+    let readers = pipes.each_ref().map(|pipe| {
+        let name = std::ffi::CString::new(pipe.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: a valid C string; mkfifo only creates the named pipe.
+        assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0, "mkfifo");
+        // Opened for reading first, without waiting for a writer: tspace's open for writing
+        // then returns at once, and a regression (a file renamed over the pipe) fails below
+        // instead of hanging.
+        let reader = std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(pipe)
+            .unwrap();
+        let pipe = pipe.clone();
+        std::thread::spawn(move || drain(reader, &pipe))
+    });
+    let out = tspace(
+        t.path(),
+        &[
+            "process",
+            "in/negative_indices.obj",
+            "-o",
+            "scene.pipe",
+            "--report",
+            "report.pipe",
+        ],
+    );
+    assert_eq!(code(&out), 0, "{}", stderr(&out));
+    let [report, scene] = readers.map(|reader| reader.join().unwrap());
+    for pipe in &pipes {
+        let kind = std::fs::symlink_metadata(pipe).unwrap().file_type();
+        assert!(kind.is_fifo(), "{} was replaced", pipe.display());
+    }
+    let report: Value = serde_json::from_slice(&report).expect("the report came through the pipe");
+    assert_eq!(report["summary"]["generated"], 1);
+    let scene = glb::parse(&scene).expect("a GLB came through the pipe");
+    assert!(has_tangents(&serde_json::from_slice(scene.json).unwrap()));
+}
+
+/// Everything written into a pipe opened without blocking, until its writer closes it (or, where
+/// nothing ever opens it for writing, for at most ten seconds).
+#[cfg(unix)]
+fn drain(mut reader: std::fs::File, pipe: &Path) -> Vec<u8> {
+    let started = std::time::Instant::now();
+    let (mut bytes, mut chunk, mut opened) = (Vec::new(), [0u8; 65536], false);
+    while started.elapsed() < std::time::Duration::from_secs(10) {
+        match reader.read(&mut chunk) {
+            Ok(0)
+                if opened
+                    || !std::fs::symlink_metadata(pipe)
+                        .is_ok_and(|m| std::os::unix::fs::FileTypeExt::is_fifo(&m.file_type())) =>
+            {
+                break;
+            }
+            Ok(0) => std::thread::sleep(std::time::Duration::from_millis(5)),
+            Ok(n) => {
+                opened = true;
+                bytes.extend_from_slice(&chunk[..n]);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                opened = true;
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+            Err(e) => panic!("reading {}: {e}", pipe.display()),
+        }
+    }
+    bytes
+}
+
 #[test]
 fn format_gltf_writes_embedded_json() {
     let t = TempDir::new("gltf");

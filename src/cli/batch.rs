@@ -123,10 +123,18 @@ fn read_file(path: &Path, length: u64) -> std::io::Result<FileBytes> {
 
 /// Writes to `path` through a temporary file beside it, so that a failure never leaves a partial
 /// output under the final name.
+///
+/// A path that is there and is neither a file nor a folder (`/dev/null`, `/dev/stdout`, a named
+/// pipe, a shell's `>(…)`) is written as it is: renaming a file over it would replace the device
+/// or pipe, and as root `--report /dev/null` replaced the machine's `/dev/null` with a file.
 fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        let mut special = std::fs::OpenOptions::new().write(true).open(path)?;
+        return write(&mut special);
+    }
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;
     }
