@@ -169,7 +169,9 @@ impl Text {
         }
     }
 
-    fn as_bytes(&self) -> &[u8] {
+    /// The text's bytes: for comparisons, which [`Text::as_str`] would make check the text as
+    /// UTF-8 first (this crate has no `unsafe` to skip that).
+    pub fn as_bytes(&self) -> &[u8] {
         match &self.0 {
             Repr::Inline { len, bytes } => bytes.get(..usize::from(*len)).unwrap_or(&[]),
             Repr::Heap(s) => s.as_bytes(),
@@ -180,6 +182,15 @@ impl Text {
 impl From<&str> for Text {
     fn from(s: &str) -> Text {
         Text::new(s)
+    }
+}
+
+impl From<Cow<'_, str>> for Text {
+    fn from(s: Cow<'_, str>) -> Text {
+        match s {
+            Cow::Borrowed(s) => Text::new(s),
+            Cow::Owned(s) => Text::from(s),
+        }
     }
 }
 
@@ -709,10 +720,11 @@ struct Parser<'a> {
     keep: Option<Keep<'a>>,
     /// the keys of the objects being read, outermost first,
     path: Vec<Text>,
-    /// the members left out, with where their keys start, for the duplicate-key check,
-    left_out: Vec<(Text, usize)>,
-    /// and how many of the values being read are left out (inside one, nothing is kept).
-    leaving_out: usize,
+    /// and the keys of the members left out, with where they start, until their objects' keys
+    /// are compared (in every parse: inside a value that is only checked, every object's).
+    /// Borrowed from the text unless they have escapes: making each a [`Text`], and reading it
+    /// back as a `str` (checked as UTF-8 again), was a fifth of a pruned parse.
+    left_out: Vec<(Cow<'a, str>, usize)>,
 }
 
 impl<'a> Parser<'a> {
@@ -728,13 +740,20 @@ impl<'a> Parser<'a> {
             keep,
             path: Vec::new(),
             left_out: Vec::new(),
-            leaving_out: 0,
         }
     }
 
     fn document(&mut self) -> Result<Node, Fail> {
+        self.whole_text(Self::value)
+    }
+
+    /// The text as one value, read by `read`, with nothing but whitespace around it.
+    fn whole_text<T>(
+        &mut self,
+        read: impl FnOnce(&mut Self) -> Result<T, Fail>,
+    ) -> Result<T, Fail> {
         self.skip_ws();
-        let root = self.value()?;
+        let root = read(self)?;
         self.skip_ws();
         if self.pos < self.bytes.len() {
             return Err((
@@ -817,21 +836,48 @@ impl<'a> Parser<'a> {
         Ok(())
     }
 
+    /// Checks a value by [`Parser::value`]'s rules and in its order, so that a text fails at
+    /// the same place with the same error, but keeps nothing of it: the members a pruned parse
+    /// leaves out, and the texts edits insert, are only checked. Keys are still compared for
+    /// repeats.
+    fn skip_value(&mut self) -> Result<(), Fail> {
+        match self.peek() {
+            Some(b'{') => self.skip_object(),
+            Some(b'[') => self.elements(Self::skip_value),
+            Some(b'"') => self.string_runs(&mut None).map(drop),
+            Some(b'-' | b'0'..=b'9') => self.check_number(),
+            Some(b't') => self.literal(b"true", Kind::Null).map(drop),
+            Some(b'f') => self.literal(b"false", Kind::Null).map(drop),
+            Some(b'n') => self.literal(b"null", Kind::Null).map(drop),
+            _ => Err(self.unexpected("a value")),
+        }
+    }
+
     fn array(&mut self) -> Result<Kind, Fail> {
+        let base = self.elements.len();
+        self.elements(|parser| {
+            let element = parser.value()?;
+            parser.elements.push(element);
+            Ok(())
+        })?;
+        Ok(Kind::Array(self.elements.drain(base..).collect()))
+    }
+
+    /// Walks an array, `element` reading each of its elements.
+    fn elements(
+        &mut self,
+        mut element: impl FnMut(&mut Self) -> Result<(), Fail>,
+    ) -> Result<(), Fail> {
         self.enter()?;
         self.pos += 1; // '['
-        let base = self.elements.len();
         self.skip_ws();
         if self.peek() == Some(b']') {
             self.pos += 1;
             self.depth -= 1;
-            return Ok(Kind::Array(Box::default()));
+            return Ok(());
         }
         loop {
-            let element = self.value()?;
-            if self.leaving_out == 0 {
-                self.elements.push(element);
-            }
+            element(self)?;
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -844,7 +890,7 @@ impl<'a> Parser<'a> {
                 Some(b']') => {
                     self.pos += 1;
                     self.depth -= 1;
-                    return Ok(Kind::Array(self.elements.drain(base..).collect()));
+                    return Ok(());
                 }
                 _ => return Err(self.unexpected("',' or ']'")),
             }
@@ -852,51 +898,103 @@ impl<'a> Parser<'a> {
     }
 
     fn object(&mut self) -> Result<Kind, Fail> {
-        self.enter()?;
-        self.pos += 1; // '{'
         let base = self.members.len();
         let left_out_base = self.left_out.len();
+        self.members_of_object(|parser, key, key_start| {
+            match parser.keep {
+                Some(keep) if !keep(&parser.path, &key) => {
+                    parser.skip_value()?;
+                    parser.left_out.push((key, key_start));
+                }
+                Some(_) => {
+                    let key = Text::from(key);
+                    parser.path.push(key.clone());
+                    let value = parser.value()?;
+                    parser.path.pop();
+                    parser.members.push(Member { key, value });
+                    parser.key_starts.push(key_start);
+                }
+                None => {
+                    let key = Text::from(key);
+                    let value = parser.value()?;
+                    parser.members.push(Member { key, value });
+                    parser.key_starts.push(key_start);
+                }
+            }
+            Ok(())
+        })?;
+        let members = self.members.get(base..).unwrap_or(&[]);
+        let starts = self.key_starts.get(base..).unwrap_or(&[]);
+        let left_out = self.left_out.get(left_out_base..).unwrap_or(&[]);
+        if members.len() + left_out.len() > 1 && may_repeat_keys(members, left_out) {
+            let mut keys: Vec<(&str, usize)> = members
+                .iter()
+                .map(|m| m.key.as_str())
+                .zip(starts.iter().copied())
+                .chain(left_out.iter().map(|(key, start)| (key.as_ref(), *start)))
+                .collect();
+            check_unique_keys(&mut keys)?;
+        }
+        self.key_starts.truncate(base);
+        self.left_out.truncate(left_out_base);
+        Ok(Kind::Object(self.members.drain(base..).collect()))
+    }
+
+    /// [`Parser::object`] keeping nothing: its keys are set aside only until they are compared.
+    fn skip_object(&mut self) -> Result<(), Fail> {
+        let base = self.left_out.len();
+        self.members_of_object(|parser, key, key_start| {
+            parser.skip_value()?;
+            parser.left_out.push((key, key_start));
+            Ok(())
+        })?;
+        let keys = self.left_out.get(base..).unwrap_or(&[]);
+        if keys.len() > 1 && may_repeat_keys(&[], keys) {
+            let mut keys: Vec<(&str, usize)> = keys
+                .iter()
+                .map(|(key, start)| (key.as_ref(), *start))
+                .collect();
+            check_unique_keys(&mut keys)?;
+        }
+        self.left_out.truncate(base);
+        Ok(())
+    }
+
+    /// Walks an object, `member` reading each member's value given its key and where the key
+    /// starts. Repeated keys are the caller's to find.
+    fn members_of_object(
+        &mut self,
+        mut member: impl FnMut(&mut Self, Cow<'a, str>, usize) -> Result<(), Fail>,
+    ) -> Result<(), Fail> {
+        self.enter()?;
+        self.pos += 1; // '{'
         self.skip_ws();
         if self.peek() == Some(b'}') {
             self.pos += 1;
             self.depth -= 1;
-            return Ok(Kind::Object(Box::default()));
+            return Ok(());
         }
         loop {
             if self.peek() != Some(b'"') {
                 return Err(self.unexpected("a key (a string)"));
             }
             let key_start = self.pos;
-            let key = self.string()?;
+            let mut decoded = None;
+            let last_run = self.string_runs(&mut decoded)?;
+            let key = match decoded {
+                None => Cow::Borrowed(last_run),
+                Some(mut decoded) => {
+                    decoded.push_str(last_run);
+                    Cow::Owned(decoded)
+                }
+            };
             self.skip_ws();
             if self.peek() != Some(b':') {
                 return Err(self.unexpected("':'"));
             }
             self.pos += 1;
             self.skip_ws();
-            match self.keep {
-                None => {
-                    let value = self.value()?;
-                    self.members.push(Member { key, value });
-                    self.key_starts.push(key_start);
-                }
-                Some(keep) => {
-                    if self.leaving_out == 0 && keep(&self.path, &key) {
-                        self.path.push(key.clone());
-                        let value = self.value()?;
-                        self.path.pop();
-                        self.members.push(Member { key, value });
-                        self.key_starts.push(key_start);
-                    } else {
-                        // Read whole, to check it, but nothing in it is kept but the keys of
-                        // its objects, while each is checked.
-                        self.leaving_out += 1;
-                        self.value()?;
-                        self.leaving_out -= 1;
-                        self.left_out.push((key, key_start));
-                    }
-                }
-            }
+            member(self, key, key_start)?;
             self.skip_ws();
             match self.peek() {
                 Some(b',') => {
@@ -909,21 +1007,7 @@ impl<'a> Parser<'a> {
                 Some(b'}') => {
                     self.pos += 1;
                     self.depth -= 1;
-                    let members = self.members.get(base..).unwrap_or(&[]);
-                    let starts = self.key_starts.get(base..).unwrap_or(&[]);
-                    let left_out = self.left_out.get(left_out_base..).unwrap_or(&[]);
-                    if members.len() + left_out.len() > 1 && may_repeat_keys(members, left_out) {
-                        let mut keys: Vec<(&str, usize)> = members
-                            .iter()
-                            .map(|m| m.key.as_str())
-                            .zip(starts.iter().copied())
-                            .chain(left_out.iter().map(|(key, start)| (key.as_str(), *start)))
-                            .collect();
-                        check_unique_keys(&mut keys)?;
-                    }
-                    self.key_starts.truncate(base);
-                    self.left_out.truncate(left_out_base);
-                    return Ok(Kind::Object(self.members.drain(base..).collect()));
+                    return Ok(());
                 }
                 _ => return Err(self.unexpected("',' or '}'")),
             }
@@ -933,10 +1017,23 @@ impl<'a> Parser<'a> {
     /// A string's decoded text. Most have no escapes and are taken from the source as they
     /// stand; the others are decoded into a buffer.
     fn string(&mut self) -> Result<Text, Fail> {
+        let mut decoded = None;
+        let last_run = self.string_runs(&mut decoded)?;
+        Ok(match decoded {
+            None => Text::new(last_run),
+            Some(mut decoded) => {
+                decoded.push_str(last_run);
+                Text::from(decoded)
+            }
+        })
+    }
+
+    /// Reads a string up to its closing quote. Its text before the last escape is decoded into
+    /// `decoded` (left `None` where it has no escape); the rest is returned as it stands.
+    fn string_runs(&mut self, decoded: &mut Option<String>) -> Result<&'a str, Fail> {
         self.pos += 1; // opening quote
-        let mut out: Option<String> = None;
         loop {
-            // Copy the run of plain characters in one piece. It starts and ends next to ASCII
+            // Take the run of plain characters in one piece. It starts and ends next to ASCII
             // bytes (or the end), so both ends are character boundaries.
             let run_start = self.pos;
             while let Some(b) = self.peek() {
@@ -950,16 +1047,10 @@ impl<'a> Parser<'a> {
                 None => return Err((self.pos, ParseErrorKind::UnexpectedEnd)),
                 Some(b'"') => {
                     self.pos += 1;
-                    return Ok(match out {
-                        None => Text::new(run),
-                        Some(mut decoded) => {
-                            decoded.push_str(run);
-                            Text::from(decoded)
-                        }
-                    });
+                    return Ok(run);
                 }
                 Some(b'\\') => {
-                    let decoded = out.get_or_insert_with(String::new);
+                    let decoded = decoded.get_or_insert_with(String::new);
                     decoded.push_str(run);
                     self.escape(decoded)?;
                 }
@@ -1041,6 +1132,13 @@ impl<'a> Parser<'a> {
 
     fn number(&mut self) -> Result<Kind, Fail> {
         let start = self.pos;
+        self.check_number()?;
+        let raw = self.text.get(start..self.pos).unwrap_or("0");
+        Ok(Kind::Number(Number(Text::new(raw))))
+    }
+
+    /// Reads a number, checking it against the grammar.
+    fn check_number(&mut self) -> Result<(), Fail> {
         if self.peek() == Some(b'-') {
             self.pos += 1;
         }
@@ -1065,8 +1163,7 @@ impl<'a> Parser<'a> {
             }
             self.required_digits()?;
         }
-        let raw = self.text.get(start..self.pos).unwrap_or("0");
-        Ok(Kind::Number(Number(Text::new(raw))))
+        Ok(())
     }
 
     fn digits(&mut self) {
@@ -1091,7 +1188,7 @@ impl<'a> Parser<'a> {
 /// Whether an object's keys may repeat: false, at once and without allocating, for the
 /// common small object whose keys all differ; [`check_unique_keys`] then has nothing to find.
 /// Keys are compared as decoded bytes, as that check compares them.
-fn may_repeat_keys(members: &[Member], left_out: &[(Text, usize)]) -> bool {
+fn may_repeat_keys(members: &[Member], left_out: &[(Cow<'_, str>, usize)]) -> bool {
     const COMPARED_PAIRWISE: usize = 16;
     let count = members.len() + left_out.len();
     if count > COMPARED_PAIRWISE {
@@ -1100,10 +1197,10 @@ fn may_repeat_keys(members: &[Member], left_out: &[(Text, usize)]) -> bool {
     let mut keys = [&[][..]; COMPARED_PAIRWISE];
     let all = members
         .iter()
-        .map(|m| &m.key)
-        .chain(left_out.iter().map(|(key, _)| key));
+        .map(|m| m.key.as_bytes())
+        .chain(left_out.iter().map(|(key, _)| key.as_bytes()));
     for (place, key) in keys.iter_mut().zip(all) {
-        *place = key.as_bytes();
+        *place = key;
     }
     let keys = &keys[..count];
     keys.iter()
@@ -1404,12 +1501,17 @@ impl<'d, 'a> Editor<'d, 'a> {
         text: impl Into<String>,
     ) -> Result<usize, EditError> {
         let text = checked_text(text.into())?;
+        self.append_checked_element(array, &text)
+    }
+
+    /// [`Editor::append_element`] with `text` already checked.
+    fn append_checked_element(&mut self, array: &Node, text: &str) -> Result<usize, EditError> {
         let Some(elements) = array.as_array() else {
             return Err(EditError::NotAnArray { span: array.span() });
         };
         let source = self.doc.source;
         let edit = self.array_edit(array, elements)?;
-        edit.add(source, &text)?;
+        edit.add(source, text)?;
         Ok(edit.elements.len() + edit.added_count - 1)
     }
 
@@ -1466,7 +1568,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
         match existing {
             Some((i, member)) if !is_removed(&edit.removed, i) => {
-                self.append_element(&member.value, text)
+                self.append_checked_element(&member.value, &text)
             }
             _ => {
                 let items = NewValue::Array {
@@ -1644,12 +1746,24 @@ impl Rendered<'_> {
     }
 }
 
+/// Checks `bytes` as [`Document::parse`] does, and fails where it fails, building nothing;
+/// whether it starts with a byte order mark when it passes.
+fn check(bytes: &[u8]) -> Result<bool, ParseError> {
+    let source = checked_source(bytes)?;
+    let had_bom = bytes.starts_with(BOM);
+    let body_start = if had_bom { BOM.len() } else { 0 };
+    Parser::new(source, body_start, None)
+        .whole_text(Parser::skip_value)
+        .map_err(|(at, kind)| ParseError::new(source, at, kind))?;
+    Ok(had_bom)
+}
+
 fn checked_text(text: String) -> Result<String, EditError> {
-    // Parsing each new fragment keeps the output valid JSON whatever the caller passes in, and
+    // Checking each new fragment keeps the output valid JSON whatever the caller passes in, and
     // costs little next to the document itself.
-    match Document::parse(text.as_bytes()) {
-        Ok(doc) if !doc.had_bom() => Ok(text),
-        Ok(_) => Err(EditError::InvalidText {
+    match check(text.as_bytes()) {
+        Ok(false) => Ok(text),
+        Ok(true) => Err(EditError::InvalidText {
             error: ParseError::new(
                 &text,
                 0,
@@ -2527,14 +2641,21 @@ mod tests {
             parts in proptest::collection::vec(
                 prop::sample::select(vec![
                     "{", "}", "[", "]", ",", ":", " ", "\"a\"", "\"b\"", "\"c\"", "1", "0",
-                    "true", "null", "\"",
+                    "true", "null", "\"", "\"\\u", "d800", "0061", "\\", "-", ".", "e",
+                    "\u{1}", "fals", "é",
                 ]),
                 0..64,
             )
         ) {
             let text: String = parts.concat();
             let keep: Keep<'_> = &keep_a_and_b_under_a;
-            match (Document::parse(text.as_bytes()), parse_pruned(text.as_bytes(), keep)) {
+            let whole = Document::parse(text.as_bytes());
+            // Checking alone fails where parsing does, with the same error.
+            prop_assert_eq!(
+                check(text.as_bytes()).map(|_| ()),
+                whole.as_ref().map(|_| ()).map_err(Clone::clone)
+            );
+            match (whole, parse_pruned(text.as_bytes(), keep)) {
                 (Ok(doc), Ok(pruned)) => {
                     prop_assert_eq!(pruned, pruned_copy(doc.root(), keep, &mut Vec::new()));
                 }

@@ -84,27 +84,33 @@ pub fn measure(root: &Node) -> MeshSizes {
 /// The members [`measure`] reads, for [`tspace_json::parse_pruned`]: a document read only to be
 /// measured (tspace's own output) then takes a fraction of its whole tree.
 pub fn read_by_measure(path: &[Text], key: &str) -> bool {
-    const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
-    let mut steps = [""; 4];
+    const MESHOPT: [&[u8]; 2] = [b"EXT_meshopt_compression", b"KHR_meshopt_compression"];
+    const DRACO: &[u8] = draco::EXTENSION.as_bytes();
+    // Steps as bytes: this is asked of every member of the output's kept objects, and reading
+    // each step as a `str` checked it as UTF-8 again, a tenth of the parse.
+    let mut steps: [&[u8]; 4] = [b""; 4];
     for (step, text) in steps.iter_mut().zip(path) {
-        *step = text;
+        *step = text.as_bytes();
     }
+    let key = key.as_bytes();
     match (path.len(), steps) {
-        (0, _) => matches!(key, "meshes" | "accessors" | "bufferViews"),
-        (1, ["meshes", ..]) => key == "primitives",
-        (2, ["meshes", "primitives", ..]) => {
-            matches!(key, "attributes" | "targets" | "indices" | "extensions")
+        (0, _) => matches!(key, b"meshes" | b"accessors" | b"bufferViews"),
+        (1, [b"meshes", ..]) => key == b"primitives",
+        (2, [b"meshes", b"primitives", ..]) => {
+            matches!(key, b"attributes" | b"targets" | b"indices" | b"extensions")
         }
-        (3, ["meshes", "primitives", "attributes" | "targets", _]) => true,
-        (3, ["meshes", "primitives", "extensions", _]) => key == draco::EXTENSION,
-        (4, ["meshes", "primitives", "extensions", draco::EXTENSION]) => key == "bufferView",
-        (1, ["accessors", ..]) => matches!(key, "bufferView" | "sparse"),
-        (2, ["accessors", "sparse", ..]) => matches!(key, "indices" | "values"),
-        (3, ["accessors", "sparse", "indices" | "values", _]) => key == "bufferView",
-        (1, ["bufferViews", ..]) => matches!(key, "byteLength" | "extensions"),
-        (2, ["bufferViews", "extensions", ..]) => MESHOPT.contains(&key),
-        (3, ["bufferViews", "extensions", name, _]) => {
-            MESHOPT.contains(&name) && key == "byteLength"
+        (3, [b"meshes", b"primitives", b"attributes" | b"targets", _]) => true,
+        (3, [b"meshes", b"primitives", b"extensions", _]) => key == DRACO,
+        (4, [b"meshes", b"primitives", b"extensions", name]) => {
+            name == DRACO && key == b"bufferView"
+        }
+        (1, [b"accessors", ..]) => matches!(key, b"bufferView" | b"sparse"),
+        (2, [b"accessors", b"sparse", ..]) => matches!(key, b"indices" | b"values"),
+        (3, [b"accessors", b"sparse", b"indices" | b"values", _]) => key == b"bufferView",
+        (1, [b"bufferViews", ..]) => matches!(key, b"byteLength" | b"extensions"),
+        (2, [b"bufferViews", b"extensions", ..]) => MESHOPT.contains(&key),
+        (3, [b"bufferViews", b"extensions", name, _]) => {
+            MESHOPT.contains(&name) && key == b"byteLength"
         }
         _ => false,
     }
