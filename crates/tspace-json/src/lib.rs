@@ -902,40 +902,29 @@ impl<'a> Parser<'a> {
         let base = self.members.len();
         let left_out_base = self.left_out.len();
         self.members_of_object(|parser, key, key_start| {
-            match parser.keep {
-                Some(keep) if !keep(&parser.path, &key) => {
-                    parser.skip_value()?;
-                    parser.left_out.push((key, key_start));
-                }
-                Some(_) => {
-                    let key = Text::from(key);
-                    parser.path.push(key.clone());
-                    let value = parser.value()?;
-                    parser.path.pop();
-                    parser.members.push(Member { key, value });
-                    parser.key_starts.push(key_start);
-                }
-                None => {
-                    let key = Text::from(key);
-                    let value = parser.value()?;
-                    parser.members.push(Member { key, value });
-                    parser.key_starts.push(key_start);
-                }
+            let pruned = parser.keep.is_some();
+            if parser.keep.is_some_and(|keep| !keep(&parser.path, &key)) {
+                parser.skip_value()?;
+                parser.left_out.push((key, key_start));
+                return Ok(());
             }
+            let key = Text::from(key);
+            if pruned {
+                parser.path.push(key.clone());
+            }
+            let value = parser.value()?;
+            if pruned {
+                parser.path.pop();
+            }
+            parser.members.push(Member { key, value });
+            parser.key_starts.push(key_start);
             Ok(())
         })?;
-        let members = self.members.get(base..).unwrap_or(&[]);
-        let starts = self.key_starts.get(base..).unwrap_or(&[]);
-        let left_out = self.left_out.get(left_out_base..).unwrap_or(&[]);
-        if members.len() + left_out.len() > 1 && may_repeat_keys(members, left_out) {
-            let mut keys: Vec<(&str, usize)> = members
-                .iter()
-                .map(|m| m.key.as_str())
-                .zip(starts.iter().copied())
-                .chain(left_out.iter().map(|(key, start)| (key.as_ref(), *start)))
-                .collect();
-            check_unique_keys(&mut keys)?;
-        }
+        refuse_repeated_keys(
+            self.members.get(base..).unwrap_or(&[]),
+            self.key_starts.get(base..).unwrap_or(&[]),
+            self.left_out.get(left_out_base..).unwrap_or(&[]),
+        )?;
         self.key_starts.truncate(base);
         self.left_out.truncate(left_out_base);
         Ok(Kind::Object(self.members.drain(base..).collect()))
@@ -949,14 +938,7 @@ impl<'a> Parser<'a> {
             parser.left_out.push((key, key_start));
             Ok(())
         })?;
-        let keys = self.left_out.get(base..).unwrap_or(&[]);
-        if keys.len() > 1 && may_repeat_keys(&[], keys) {
-            let mut keys: Vec<(&str, usize)> = keys
-                .iter()
-                .map(|(key, start)| (key.as_ref(), *start))
-                .collect();
-            check_unique_keys(&mut keys)?;
-        }
+        refuse_repeated_keys(&[], &[], self.left_out.get(base..).unwrap_or(&[]))?;
         self.left_out.truncate(base);
         Ok(())
     }
@@ -980,15 +962,7 @@ impl<'a> Parser<'a> {
                 return Err(self.unexpected("a key (a string)"));
             }
             let key_start = self.pos;
-            let mut decoded = None;
-            let last_run = self.string_runs(&mut decoded)?;
-            let key = match decoded {
-                None => Cow::Borrowed(last_run),
-                Some(mut decoded) => {
-                    decoded.push_str(last_run);
-                    Cow::Owned(decoded)
-                }
-            };
+            let key = self.decoded_string()?;
             self.skip_ws();
             if self.peek() != Some(b':') {
                 return Err(self.unexpected("':'"));
@@ -1018,13 +992,18 @@ impl<'a> Parser<'a> {
     /// A string's decoded text. Most have no escapes and are taken from the source as they
     /// stand; the others are decoded into a buffer.
     fn string(&mut self) -> Result<Text, Fail> {
+        self.decoded_string().map(Text::from)
+    }
+
+    /// A string's decoded text, borrowed from the source where it has no escapes.
+    fn decoded_string(&mut self) -> Result<Cow<'a, str>, Fail> {
         let mut decoded = None;
         let last_run = self.string_runs(&mut decoded)?;
         Ok(match decoded {
-            None => Text::new(last_run),
+            None => Cow::Borrowed(last_run),
             Some(mut decoded) => {
                 decoded.push_str(last_run);
-                Text::from(decoded)
+                Cow::Owned(decoded)
             }
         })
     }
@@ -1207,6 +1186,25 @@ fn may_repeat_keys(members: &[Member], left_out: &[(Cow<'_, str>, usize)]) -> bo
     keys.iter()
         .enumerate()
         .any(|(i, key)| keys[..i].contains(key))
+}
+
+/// Fails on the first repeated key of an object: its `members` kept (their keys starting at
+/// `starts`) and its keys `left_out`.
+fn refuse_repeated_keys(
+    members: &[Member],
+    starts: &[usize],
+    left_out: &[(Cow<'_, str>, usize)],
+) -> Result<(), Fail> {
+    if members.len() + left_out.len() < 2 || !may_repeat_keys(members, left_out) {
+        return Ok(());
+    }
+    let mut keys: Vec<(&str, usize)> = members
+        .iter()
+        .map(|m| m.key.as_str())
+        .zip(starts.iter().copied())
+        .chain(left_out.iter().map(|(key, start)| (key.as_ref(), *start)))
+        .collect();
+    check_unique_keys(&mut keys)
 }
 
 fn check_unique_keys(keys: &mut [(&str, usize)]) -> Result<(), Fail> {
