@@ -295,6 +295,30 @@ pub(crate) fn analyze_triangles(
     }
 }
 
+/// Normals are screened this many at a time; a block that holds any normal that is not nearly
+/// unit is looked at normal by normal.
+const SCREEN: usize = 64;
+
+/// Whether a normal is finite and of length within 1e-3 of 1, without a branch or a square root:
+/// most normals are unit, and a squared length this close to 1 in f32 (rounding moves it by
+/// about 1e-7) puts the length well within 1e-3 of 1. A non-finite component makes the squared
+/// length NaN or infinite, which fails the comparison.
+#[inline(always)]
+fn nearly_unit(n: [f32; 3]) -> bool {
+    let len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    (0.9985..=1.0015).contains(&len2)
+}
+
+/// Whether every component of every item is finite: branch-free over the whole slice, so that it
+/// runs as vector loops (an early exit at the first non-finite item, which nearly no mesh has,
+/// would test one component at a time).
+fn all_finite<const N: usize>(items: &[[f32; N]]) -> bool {
+    items
+        .as_flattened()
+        .iter()
+        .fold(true, |finite, &x| finite & x.is_finite())
+}
+
 /// Input-side diagnostics that look at vertices: normal checks, and which vertices hold
 /// non-finite values (returned for [`TriangleCheck`]; empty when all are finite). Triangle
 /// checks and output-side counts (split, handedness, fallbacks) are filled in by the steps that
@@ -306,24 +330,27 @@ pub(crate) fn analyze_vertices(mesh: &Mesh<'_>, options: &Options) -> (Diagnosti
         let mut zero = Tally::default();
         let mut non_unit = Tally::default();
         let mut non_finite = false;
-        for (v, &n) in (chunk * CHUNK..).zip(normals) {
-            if !is_finite3(n) {
-                non_finite = true;
+        let first = chunk * CHUNK;
+        for (block, normals) in normals.chunks(SCREEN).enumerate() {
+            if normals.iter().fold(true, |unit, &n| unit & nearly_unit(n)) {
                 continue;
             }
-            // Most normals are unit: a squared length this close to 1 in f32 (rounding moves it
-            // by about 1e-7) puts the length well within 1e-3 of 1, without the f64 square root.
-            let len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-            if (0.9985..=1.0015).contains(&len2) {
-                continue;
-            }
-            // In f64: an f32 length underflows to zero for tiny normals the core still uses.
-            let w = n.map(f64::from);
-            let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-            if len == 0.0 {
-                zero.add(v as u32);
-            } else if (len - 1.0).abs() > 1e-3 {
-                non_unit.add(v as u32);
+            for (v, &n) in (first + block * SCREEN..).zip(normals) {
+                if !is_finite3(n) {
+                    non_finite = true;
+                    continue;
+                }
+                if nearly_unit(n) {
+                    continue;
+                }
+                // In f64: an f32 length underflows to zero for tiny normals the core still uses.
+                let w = n.map(f64::from);
+                let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+                if len == 0.0 {
+                    zero.add(v as u32);
+                } else if (len - 1.0).abs() > 1e-3 {
+                    non_unit.add(v as u32);
+                }
             }
         }
         (zero, non_unit, non_finite)
@@ -355,14 +382,14 @@ pub(crate) fn analyze_vertices(mesh: &Mesh<'_>, options: &Options) -> (Diagnosti
             && is_finite3(mesh.normals[v])
             && mesh.uv(v).iter().all(|x| x.is_finite())
     };
-    let finite_uv = |t: &[f32; 2]| t[0].is_finite() && t[1].is_finite();
     any_non_finite = any_non_finite
         || if options.parallel {
-            !mesh.positions.par_iter().all(|&p| is_finite3(p))
-                || mesh.uvs.is_some_and(|uvs| !uvs.par_iter().all(finite_uv))
+            !mesh.positions.par_chunks(CHUNK).all(all_finite)
+                || mesh
+                    .uvs
+                    .is_some_and(|uvs| !uvs.par_chunks(CHUNK).all(all_finite))
         } else {
-            !mesh.positions.iter().all(|&p| is_finite3(p))
-                || mesh.uvs.is_some_and(|uvs| !uvs.iter().all(finite_uv))
+            !all_finite(mesh.positions) || mesh.uvs.is_some_and(|uvs| !all_finite(uvs))
         };
     let non_finite_vertex = if any_non_finite {
         (0..mesh.vertex_count())

@@ -614,18 +614,24 @@ fn check_lengths(input: &MeshInput<'_>, parallel: bool) -> Result<(), CoreError>
     }
     if let Some(indices) = input.indices {
         let out_of_range = |&i: &u32| i as usize >= vertex_count;
-        // By chunks: rayon's per-element `position_first` cost twenty times the serial scan.
+        // A chunk's largest index, found by a vector loop, clears the whole chunk; only a chunk
+        // that holds a bad index is searched for the first one. By chunks in parallel too:
+        // rayon's per-element `position_first` cost twenty times the serial scan.
         const CHUNK: usize = 1 << 16;
+        let has_bad = |chunk: &[u32]| {
+            chunk.iter().fold(0, |largest: u32, &i| largest.max(i)) as usize >= vertex_count
+        };
+        let find_bad = |chunk: usize| {
+            let at = chunk * CHUNK;
+            indices[at..].iter().position(out_of_range).map(|i| at + i)
+        };
         let first_bad = if parallel && indices.len() > CHUNK {
             indices
                 .par_chunks(CHUNK)
-                .position_first(|chunk| chunk.iter().any(out_of_range))
-                .and_then(|chunk| {
-                    let at = chunk * CHUNK;
-                    indices[at..].iter().position(out_of_range).map(|i| at + i)
-                })
+                .position_first(has_bad)
+                .and_then(find_bad)
         } else {
-            indices.iter().position(out_of_range)
+            indices.chunks(CHUNK).position(has_bad).and_then(find_bad)
         };
         if let Some(corner) = first_bad {
             return Err(CoreError::IndexOutOfRange {
@@ -728,6 +734,43 @@ mod tests {
         assert_eq!("mikk".parse(), Ok(Method::MikkTSpace));
         let error = "magic".parse::<Method>().unwrap_err();
         assert_eq!(error.to_string(), "expected mikktspace, fast or axis");
+    }
+
+    /// Normals are screened in blocks: a block with one odd normal among unit ones still
+    /// reports it, at its own index, whichever block and chunk it lies in, and a normal within
+    /// 1e-3 of unit length is not reported.
+    #[test]
+    fn odd_normals_are_found_wherever_they_lie_among_unit_ones() {
+        let (positions, mut normals, mut uvs, indices) = grid(300);
+        let zero = [3, 64, 70_000];
+        let non_unit = [(63, 2.0), (65, 0.5), (90_000, 1.002)];
+        let nearly_unit = [(128, 1.0009), (129, 0.9991)];
+        for &v in &zero {
+            normals[v] = [0.0; 3];
+        }
+        for &(v, length) in non_unit.iter().chain(&nearly_unit) {
+            normals[v] = [0.0, 0.0, length];
+        }
+        uvs[80_000] = [f32::INFINITY, 0.0];
+        let input = MeshInput {
+            positions: &positions,
+            normals: Some(&normals),
+            uvs: Some(&uvs),
+            indices: Some(&indices),
+        };
+        for parallel in [false, true] {
+            let options = Options {
+                parallel,
+                ..Options::default()
+            };
+            let diagnostics = generate(&input, &options).unwrap().diagnostics;
+            assert_eq!(diagnostics.zero_normals.first, zero.map(|v| v as u32));
+            assert_eq!(
+                diagnostics.non_unit_normals.first,
+                non_unit.map(|(v, _)| v as u32)
+            );
+            assert!(diagnostics.non_finite_triangles.count > 0);
+        }
     }
 
     /// The parallel index check names the same first bad corner as the serial one, wherever
