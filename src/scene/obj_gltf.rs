@@ -389,16 +389,22 @@ impl<'o> MeshBuilder<'o> {
     }
 
     fn add(&mut self, signature: Signature<'o>, triangle: [Corner; 3]) -> Result<(), ConvertError> {
-        let slot = *self.by_signature.entry(signature).or_insert_with(|| {
-            self.primitives.push(Primitive {
-                signature,
-                vertices: Vec::new(),
-                indices: Vec::new(),
-            });
-            self.vertex_maps
-                .push(HashMap::with_hasher(SeededFold::new()));
-            self.primitives.len() - 1
-        });
+        // Consecutive triangles nearly always join the same primitive: asked first, that spares
+        // hashing the material's name for every triangle.
+        let last = self.primitives.len().checked_sub(1);
+        let slot = match last.filter(|&l| self.primitives[l].signature == signature) {
+            Some(last) => last,
+            None => *self.by_signature.entry(signature).or_insert_with(|| {
+                self.primitives.push(Primitive {
+                    signature,
+                    vertices: Vec::new(),
+                    indices: Vec::new(),
+                });
+                self.vertex_maps
+                    .push(HashMap::with_hasher(SeededFold::new()));
+                self.primitives.len() - 1
+            }),
+        };
         let (Some(primitive), Some(map)) = (
             self.primitives.get_mut(slot),
             self.vertex_maps.get_mut(slot),
@@ -483,44 +489,86 @@ fn check_corners(obj: &Obj, triangle: &[Corner; 3]) -> Result<(), ConvertError> 
     Ok(())
 }
 
-/// `triangle` with texture coordinates and normals kept only where all three corners have
-/// them, usable (finite, and for normals of non-zero length), counting what is dropped; and
-/// the signature (without material) that results.
-fn usable_attributes(
-    obj: &Obj,
-    triangle: &[Corner; 3],
-    dropped: &mut Dropped,
-) -> ([Corner; 3], bool, bool) {
-    let uvs = triangle.iter().filter(|c| c.uv.is_some()).count();
-    let normals = triangle.iter().filter(|c| c.normal.is_some()).count();
-    if uvs % 3 != 0 || normals % 3 != 0 {
-        dropped.partial += 1;
+/// What a triangle keeps: whether its positions are finite (a triangle that is not is
+/// dropped), and which of texture coordinates and normals it keeps, those present on all three
+/// corners and usable (finite, and for normals of non-zero length); and what it drops, for
+/// [`Dropped`]. Found once, in [`plan_mesh`]'s first pass, and read again in its second (a
+/// byte a triangle), where finding it twice read every corner's values twice.
+#[derive(Clone, Copy)]
+struct Usable(u8);
+
+impl Usable {
+    const FINITE: u8 = 1;
+    const UV: u8 = 2;
+    const NORMAL: u8 = 4;
+    const PARTIAL: u8 = 8;
+    const UV_DROPPED: u8 = 16;
+    const NORMAL_DROPPED: u8 = 32;
+
+    fn of(obj: &Obj, triangle: &[Corner; 3]) -> Usable {
+        if !finite_positions(obj, triangle) {
+            return Usable(0);
+        }
+        let uvs = triangle.iter().filter(|c| c.uv.is_some()).count();
+        let normals = triangle.iter().filter(|c| c.normal.is_some()).count();
+        let mut flags = Self::FINITE;
+        if uvs % 3 != 0 || normals % 3 != 0 {
+            flags |= Self::PARTIAL;
+        }
+        let finite_uv = |c: &Corner| {
+            c.uv.and_then(|i| obj.uvs.get(i as usize))
+                .is_some_and(|uv| uv.iter().all(|v| v.is_finite()))
+        };
+        let usable = |c: &Corner| {
+            c.normal
+                .and_then(|i| obj.normals.get(i as usize))
+                .is_some_and(|&n| usable_normal(n))
+        };
+        if uvs == 3 {
+            flags |= if triangle.iter().all(finite_uv) {
+                Self::UV
+            } else {
+                Self::UV_DROPPED
+            };
+        }
+        if normals == 3 {
+            flags |= if triangle.iter().all(usable) {
+                Self::NORMAL
+            } else {
+                Self::NORMAL_DROPPED
+            };
+        }
+        Usable(flags)
     }
-    let finite_uv = |c: &Corner| {
-        c.uv.and_then(|i| obj.uvs.get(i as usize))
-            .is_some_and(|uv| uv.iter().all(|v| v.is_finite()))
-    };
-    let usable = |c: &Corner| {
-        c.normal
-            .and_then(|i| obj.normals.get(i as usize))
-            .is_some_and(|&n| usable_normal(n))
-    };
-    let mut has_uv = uvs == 3;
-    if has_uv && !triangle.iter().all(finite_uv) {
-        has_uv = false;
-        dropped.uvs += 1;
+
+    fn finite(self) -> bool {
+        self.0 & Self::FINITE != 0
     }
-    let mut has_normal = normals == 3;
-    if has_normal && !triangle.iter().all(usable) {
-        has_normal = false;
-        dropped.normals += 1;
+
+    fn uv(self) -> bool {
+        self.0 & Self::UV != 0
     }
-    let kept = triangle.map(|mut c| {
-        c.uv = c.uv.filter(|_| has_uv);
-        c.normal = c.normal.filter(|_| has_normal);
-        c
-    });
-    (kept, has_uv, has_normal)
+
+    fn normal(self) -> bool {
+        self.0 & Self::NORMAL != 0
+    }
+
+    /// Counts what a finite triangle drops.
+    fn count(self, dropped: &mut Dropped) {
+        let has = |flag: u8| usize::from(self.0 & flag != 0);
+        dropped.partial += has(Self::PARTIAL);
+        dropped.uvs += has(Self::UV_DROPPED);
+        dropped.normals += has(Self::NORMAL_DROPPED);
+    }
+
+    /// `triangle` with only the attributes it keeps.
+    fn keep(self, triangle: &[Corner; 3]) -> [Corner; 3] {
+        triangle.map(|mut c| {
+            c.uv = c.uv.filter(|_| self.uv());
+            c.normal = c.normal.filter(|_| self.normal());
+            c
+        })
+    }
 }
 
 /// Splits the OBJ's face groups into meshes and primitives, dropping from each triangle an
@@ -569,8 +617,9 @@ fn plan_meshes(
 }
 
 /// One object's mesh, in two passes over its faces, so that nothing per triangle is kept
-/// between them but the generated normals' numbers: the triangles left without normals get
-/// them, all at once, then every triangle joins its primitive.
+/// between them but what each keeps ([`Usable`], a byte) and the generated normals' numbers:
+/// the triangles left without normals get them, all at once, then every triangle joins its
+/// primitive.
 fn plan_mesh<'o>(
     obj: &'o Obj,
     name: Option<&'o str>,
@@ -588,34 +637,34 @@ fn plan_mesh<'o>(
         })
     };
     let mut without_normals = Vec::new();
+    let mut usable = Vec::with_capacity(groups.iter().map(|g| g.triangles.len()).sum());
     for (_, triangle, smoothing) in triangles() {
         check_corners(obj, triangle)?;
-        // Dropped, and counted, in the second pass.
-        if !finite_positions(obj, triangle) {
-            continue;
-        }
-        let (triangle, _, normal) = usable_attributes(obj, triangle, &mut Dropped::default());
-        if !normal {
-            without_normals.push((triangle, smoothing));
+        let kept = Usable::of(obj, triangle);
+        usable.push(kept);
+        // A triangle whose positions are not finite is dropped, and counted, in the second pass.
+        if kept.finite() && !kept.normal() {
+            without_normals.push((kept.keep(triangle), smoothing));
         }
     }
     let mut made = generate_missing_normals(obj, &without_normals, request, generated)?.into_iter();
     drop(without_normals);
     let mut builder = MeshBuilder::new(name);
-    for (group, triangle, _) in triangles() {
-        if !finite_positions(obj, triangle) {
+    for ((group, triangle, _), &kept) in triangles().zip(&usable) {
+        if !kept.finite() {
             dropped.positions += 1;
             continue;
         }
-        let (mut triangle, uv, normal) = usable_attributes(obj, triangle, dropped);
-        if !normal {
+        kept.count(dropped);
+        let mut triangle = kept.keep(triangle);
+        if !kept.normal() {
             for corner in &mut triangle {
                 corner.normal = made.next();
             }
         }
         let signature = Signature {
             material: group.material.as_deref(),
-            uv,
+            uv: kept.uv(),
             normal: true,
         };
         builder.add(signature, triangle)?;
