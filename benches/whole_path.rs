@@ -4,7 +4,7 @@
 //! the issue sets as targets and the child's peak RSS.
 //!
 //! `cargo bench --bench whole_path`. Scenes: a generated UV sphere of 2M triangles (56 MB GLB),
-//! the JSON-heavy scene of 50,000 one-triangle primitives with their own accessors (35.7 MB,
+//! one of 1M triangles as an OBJ (about 100 MB of text), the JSON-heavy scene of 50,000 one-triangle primitives with their own accessors (35.7 MB,
 //! `tspace_testkit::json_heavy`) and the same without NORMAL (27.3 MB), 100,000 primitives that
 //! share one triangle's accessors (5.8 MB, `json_heavy_shared`), the corpus's DamagedHelmet
 //! when `../shared/corpus` is present. Each scene is also sent once to a fresh `tspace serve`
@@ -123,6 +123,51 @@ fn sphere(dir: &Path, quick: bool) -> Scene {
         name,
         file,
         kind: InputKind::Glb,
+        bytes,
+        mesh,
+    }
+}
+
+/// The same kind of sphere as a Wavefront OBJ of a million triangles (the scene layer's other
+/// input format: text to parse, corners to weld into glTF vertices), written as exporters write
+/// one: six decimals, `f v/vt/vn` corners. The cores run on the generated mesh.
+fn obj_sphere(dir: &Path, quick: bool) -> Scene {
+    use std::fmt::Write as _;
+    let (segments, rings) = if quick { (316, 317) } else { (707, 708) };
+    let shape = shapes::uv_sphere(segments, rings);
+    let mut text = String::with_capacity(100 * shape.positions.len());
+    for [x, y, z] in &shape.positions {
+        let _ = writeln!(text, "v {x:.6} {y:.6} {z:.6}");
+    }
+    for [u, v] in &shape.uvs {
+        // OBJ's V axis points up, glTF's down.
+        let _ = writeln!(text, "vt {u:.6} {:.6}", 1.0 - v);
+    }
+    for [x, y, z] in &shape.normals {
+        let _ = writeln!(text, "vn {x:.6} {y:.6} {z:.6}");
+    }
+    for triangle in shape.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| triangle[k] + 1);
+        let _ = writeln!(text, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}");
+    }
+    let bytes = text.into_bytes();
+    let name = format!("OBJ sphere {}", thousands(shape.triangle_count()));
+    let file = dir.join("sphere.obj");
+    write_input(&file, &bytes);
+    let mesh = BenchMesh {
+        name: name.clone(),
+        family: Family::Sphere,
+        nominal_triangles: None,
+        positions: shape.positions,
+        normals: shape.normals,
+        uvs: shape.uvs,
+        indices: shape.indices,
+        exact_tangents: None,
+    };
+    Scene {
+        name,
+        file,
+        kind: InputKind::Obj,
         bytes,
         mesh,
     }
@@ -802,6 +847,9 @@ fn main() {
     let mut scenes = Vec::new();
     if wanted("sphere") {
         scenes.push(sphere(&dir, config.quick));
+    }
+    if wanted("OBJ sphere") {
+        scenes.push(obj_sphere(&dir, config.quick));
     }
     if wanted("JSON-heavy") {
         scenes.push(json_heavy(&dir, config.quick, true));

@@ -13,6 +13,7 @@ use super::gltf::load::{NoResources, Resources};
 use super::gltf::{self, glb};
 use super::obj::{self, ObjErrorKind};
 use super::obj_gltf::{self, ConvertError, ConvertLimits, NormalRequest};
+use super::options::Timings;
 use super::report::Notice;
 use super::uri::PartSet;
 use super::{Processed, SceneOptions};
@@ -122,7 +123,9 @@ fn process_obj<'a>(
     resources: &dyn Resources<'a>,
     options: &SceneOptions,
 ) -> Result<Processed, SceneError> {
+    let mut timings = Timings::start();
     let parsed = parse_obj(main, options)?;
+    timings.lap("parse OBJ");
     SceneError::check(&options.cancel)?;
     check_reads_as_obj(&parsed)?;
     let mut supplied = Supplied::default();
@@ -130,6 +133,8 @@ fn process_obj<'a>(
     supplied.notices.extend(parse_notices(&parsed.warnings));
     fetch_textures(mtl.as_ref(), resources, &mut supplied);
     let glb_bytes = convert_to_glb(&parsed, mtl.as_ref(), &mut supplied, options)?;
+    drop(parsed);
+    timings.lap("convert OBJ to GLB");
     SceneError::check(&options.cancel)?;
     let mut processed = gltf::process_with(
         &glb_bytes,
@@ -139,10 +144,17 @@ fn process_obj<'a>(
             no_material_means_tangents: true,
         },
     )?;
+    // The OBJ's steps, then the glTF path's.
+    timings.steps.append(&mut processed.timings.steps);
     // The pieces would refer to the GLB made here, which goes when this returns.
     if let Some(pieces) = processed.pieces.take() {
+        let assembling = std::time::Instant::now();
         processed.bytes = Some(pieces.to_vec(&glb_bytes));
+        timings
+            .steps
+            .push(("assemble the output", assembling.elapsed()));
     }
+    processed.timings.steps = timings.steps;
     let report = &mut processed.report;
     report.input_format = "obj";
     report.input_bytes = main.len() as u64 + supplied.bytes;

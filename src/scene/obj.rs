@@ -743,12 +743,15 @@ impl Reader<'_> {
 
     fn current_group(&mut self) -> &mut FaceGroup {
         let groups = &mut self.obj.groups;
-        let reusable = groups.last().is_some_and(|g| {
-            g.object == self.key.object
-                && g.groups == self.key.groups
-                && g.material == self.key.material
-        });
-        if !(self.group_current || reusable) {
+        // Compared only after a statement changed the key, not for every face.
+        let reusable = || {
+            groups.last().is_some_and(|g| {
+                g.object == self.key.object
+                    && g.groups == self.key.groups
+                    && g.material == self.key.material
+            })
+        };
+        if !(self.group_current || reusable()) {
             let key = self.key.clone();
             groups.push(FaceGroup {
                 object: key.object,
