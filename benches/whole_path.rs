@@ -107,7 +107,17 @@ fn sphere(dir: &Path, quick: bool) -> Scene {
     let shape = shapes::uv_sphere(segments, rings);
     let bytes = tspace_testkit::glb_builder::shape_glb(&shape);
     let name = format!("sphere {}", thousands(shape.triangle_count()));
-    let file = dir.join("sphere.glb");
+    shape_scene(name, dir.join("sphere.glb"), InputKind::Glb, bytes, shape)
+}
+
+/// A scene of a generated shape written to `file` as `bytes`; the cores run on the shape.
+fn shape_scene(
+    name: String,
+    file: PathBuf,
+    kind: InputKind,
+    bytes: Vec<u8>,
+    shape: shapes::Shape,
+) -> Scene {
     write_input(&file, &bytes);
     let mesh = BenchMesh {
         name: name.clone(),
@@ -122,7 +132,7 @@ fn sphere(dir: &Path, quick: bool) -> Scene {
     Scene {
         name,
         file,
-        kind: InputKind::Glb,
+        kind,
         bytes,
         mesh,
     }
@@ -152,25 +162,7 @@ fn obj_sphere(dir: &Path, quick: bool) -> Scene {
     }
     let bytes = text.into_bytes();
     let name = format!("OBJ sphere {}", thousands(shape.triangle_count()));
-    let file = dir.join("sphere.obj");
-    write_input(&file, &bytes);
-    let mesh = BenchMesh {
-        name: name.clone(),
-        family: Family::Sphere,
-        nominal_triangles: None,
-        positions: shape.positions,
-        normals: shape.normals,
-        uvs: shape.uvs,
-        indices: shape.indices,
-        exact_tangents: None,
-    };
-    Scene {
-        name,
-        file,
-        kind: InputKind::Obj,
-        bytes,
-        mesh,
-    }
+    shape_scene(name, dir.join("sphere.obj"), InputKind::Obj, bytes, shape)
 }
 
 /// The JSON-heavy scene: one-triangle primitives, each with its own accessors; without

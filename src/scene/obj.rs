@@ -2149,6 +2149,13 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_tokenizers_whitespace_is_asciis() {
+        for b in 0..=u8::MAX {
+            assert_eq!(is_space(b), b.is_ascii_whitespace(), "{b:#04x}");
+        }
+    }
+
     /// Tokens made of the characters a number is spelled with, mostly decimals of a few digits
     /// (the fast paths' cases) and their edges: long mantissas, many fraction digits, signs
     /// alone, points alone, exponents, stray letters.
