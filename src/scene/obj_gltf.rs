@@ -304,12 +304,94 @@ struct Mesh<'o> {
 }
 
 /// Builds a mesh's primitives, deduplicating corners per primitive.
-struct MeshBuilder<'o> {
+struct MeshBuilder<'o, 'w> {
     name: Option<&'o str>,
     primitives: Vec<Primitive<'o>>,
     by_signature: HashMap<Signature<'o>, usize>,
-    /// One map per primitive, from a corner (as [`corner_key`]) to its vertex index.
-    vertex_maps: Vec<HashMap<u128, u32, SeededFold>>,
+    /// Which vertex each corner already has, across the mesh's primitives.
+    welded: &'w mut CornerWeld,
+}
+
+/// Where each corner of a mesh became a vertex: for every position, the chain of vertices made
+/// at it, in any primitive. Exporters give a position a handful of texture coordinates and
+/// normals at most, so a lookup walks a short chain near the last one, where a hash map of
+/// every corner missed the cache on most lookups and grew through a dozen rehashes (a sixth
+/// of converting a million-triangle OBJ). A position with more than [`CHAIN_LIMIT`] vertices
+/// (only a contrived file has one) keeps the rest in a hash map, so that no file makes the
+/// lookups quadratic. One weld serves every object of a file in turn: its table is as long as
+/// the file's positions, and only the places a mesh used are cleared after it.
+struct CornerWeld {
+    /// Per position, its latest vertex's entry, or [`NO_ENTRY`].
+    heads: Vec<u32>,
+    entries: Vec<WeldEntry>,
+    /// Vertices beyond a full chain, by primitive and [`corner_key`].
+    overflow: HashMap<(usize, u128), u32, SeededFold>,
+}
+
+struct WeldEntry {
+    corner: Corner,
+    primitive: u32,
+    vertex: u32,
+    /// The entry made before it at the same position, or [`NO_ENTRY`].
+    next: u32,
+}
+
+const NO_ENTRY: u32 = u32::MAX;
+
+/// The longest chain of vertices a position keeps (see [`CornerWeld`]).
+const CHAIN_LIMIT: usize = 32;
+
+impl CornerWeld {
+    fn new(position_count: usize) -> CornerWeld {
+        CornerWeld {
+            heads: vec![NO_ENTRY; position_count],
+            entries: Vec::new(),
+            overflow: HashMap::with_hasher(SeededFold::new()),
+        }
+    }
+
+    /// The vertex of `corner` in primitive `slot`, if it has one already, or else `new_vertex`,
+    /// which it then becomes. `None` for a corner whose position has no place in the table.
+    fn vertex(&mut self, slot: usize, corner: Corner, new_vertex: u32) -> Option<(u32, bool)> {
+        let position = corner.position as usize;
+        let head = *self.heads.get(position)?;
+        let mut at = head;
+        let mut walked = 0;
+        while at != NO_ENTRY && walked < CHAIN_LIMIT {
+            let entry = self.entries.get(at as usize)?;
+            if entry.corner == corner && entry.primitive as usize == slot {
+                return Some((entry.vertex, false));
+            }
+            at = entry.next;
+            walked += 1;
+        }
+        if walked == CHAIN_LIMIT {
+            return Some(match self.overflow.entry((slot, corner_key(&corner))) {
+                Entry::Occupied(known) => (*known.get(), false),
+                Entry::Vacant(new) => (*new.insert(new_vertex), true),
+            });
+        }
+        // Entries are at most the corners of one mesh, which are counted in u32 elsewhere.
+        let index = u32::try_from(self.entries.len()).ok()?;
+        self.entries.push(WeldEntry {
+            corner,
+            primitive: u32::try_from(slot).ok()?,
+            vertex: new_vertex,
+            next: head,
+        });
+        self.heads[position] = index;
+        Some((new_vertex, true))
+    }
+
+    /// Forgets the last mesh's vertices, clearing only the places it used.
+    fn clear(&mut self) {
+        for entry in self.entries.drain(..) {
+            if let Some(head) = self.heads.get_mut(entry.corner.position as usize) {
+                *head = NO_ENTRY;
+            }
+        }
+        self.overflow.clear();
+    }
 }
 
 /// A corner's three indices in one integer, each in bits of its own (absent ones as 0, present
@@ -378,13 +460,14 @@ impl std::hash::Hasher for FoldHasher {
     }
 }
 
-impl<'o> MeshBuilder<'o> {
-    fn new(name: Option<&'o str>) -> Self {
+impl<'o, 'w> MeshBuilder<'o, 'w> {
+    fn new(name: Option<&'o str>, welded: &'w mut CornerWeld) -> Self {
+        welded.clear();
         MeshBuilder {
             name,
             primitives: Vec::new(),
             by_signature: HashMap::new(),
-            vertex_maps: Vec::new(),
+            welded,
         }
     }
 
@@ -400,28 +483,28 @@ impl<'o> MeshBuilder<'o> {
                     vertices: Vec::new(),
                     indices: Vec::new(),
                 });
-                self.vertex_maps
-                    .push(HashMap::with_hasher(SeededFold::new()));
                 self.primitives.len() - 1
             }),
         };
-        let (Some(primitive), Some(map)) = (
-            self.primitives.get_mut(slot),
-            self.vertex_maps.get_mut(slot),
-        ) else {
-            return Ok(()); // Unreachable: both vectors grow together.
+        let Some(primitive) = self.primitives.get_mut(slot) else {
+            return Ok(()); // Unreachable: `slot` was found or made above.
         };
         for corner in triangle {
-            let next = primitive.vertices.len();
-            let index = match map.entry(corner_key(&corner)) {
-                Entry::Occupied(known) => *known.get(),
-                Entry::Vacant(new) => {
-                    let index = to_u32("the vertex count of one primitive", next)?;
-                    new.insert(index);
-                    primitive.vertices.push(corner);
-                    index
-                }
-            };
+            let next = to_u32(
+                "the vertex count of one primitive",
+                primitive.vertices.len(),
+            )?;
+            let (index, new) =
+                self.welded
+                    .vertex(slot, corner, next)
+                    .ok_or(ConvertError::IndexOutOfRange {
+                        what: "position",
+                        index: corner.position,
+                        count: self.welded.heads.len(),
+                    })?;
+            if new {
+                primitive.vertices.push(corner);
+            }
             primitive.indices.push(index);
         }
         Ok(())
@@ -582,6 +665,7 @@ fn plan_meshes(
     let mut current: Option<(Option<&str>, Vec<&FaceGroup>)> = None;
     let mut dropped = Dropped::default();
     let mut generated = GeneratedNormals::default();
+    let mut welded = CornerWeld::new(obj.positions.len());
     for group in &obj.groups {
         if group.triangles.is_empty() {
             continue;
@@ -590,7 +674,15 @@ fn plan_meshes(
         // A new `o` name starts a new mesh, even one an earlier mesh had.
         if current.as_ref().is_none_or(|(name, _)| *name != object) {
             if let Some((name, groups)) = current.take() {
-                let mesh = plan_mesh(obj, name, &groups, request, &mut dropped, &mut generated)?;
+                let mesh = plan_mesh(
+                    obj,
+                    name,
+                    &groups,
+                    request,
+                    &mut dropped,
+                    &mut generated,
+                    &mut welded,
+                )?;
                 meshes.push(mesh);
             }
             current = Some((object, Vec::new()));
@@ -600,7 +692,15 @@ fn plan_meshes(
         }
     }
     if let Some((name, groups)) = current {
-        let mesh = plan_mesh(obj, name, &groups, request, &mut dropped, &mut generated)?;
+        let mesh = plan_mesh(
+            obj,
+            name,
+            &groups,
+            request,
+            &mut dropped,
+            &mut generated,
+            &mut welded,
+        )?;
         meshes.push(mesh);
     }
     if meshes.is_empty() {
@@ -627,6 +727,7 @@ fn plan_mesh<'o>(
     request: NormalRequest,
     dropped: &mut Dropped,
     generated: &mut GeneratedNormals,
+    welded: &mut CornerWeld,
 ) -> Result<Mesh<'o>, ConvertError> {
     let triangles = || {
         groups.iter().flat_map(|g| {
@@ -649,7 +750,7 @@ fn plan_mesh<'o>(
     }
     let mut made = generate_missing_normals(obj, &without_normals, request, generated)?.into_iter();
     drop(without_normals);
-    let mut builder = MeshBuilder::new(name);
+    let mut builder = MeshBuilder::new(name, welded);
     for ((group, triangle, _), &kept) in triangles().zip(&usable) {
         if !kept.finite() {
             dropped.positions += 1;
@@ -3356,6 +3457,72 @@ mod tests {
             assert_eq!(prims[0].len(), 1);
             assert_eq!(prims[0][0].indices.len(), 36);
             assert!(prims[0][0].uvs.is_some() && prims[0][0].normals.is_some());
+        }
+    }
+
+    /// The vertices [`CornerWeld`] gives a sequence of (primitive, corner) lookups, against
+    /// numbering each primitive's distinct corners by first use with a plain map.
+    fn weld_against_a_map(weld: &mut CornerWeld, lookups: &[(usize, Corner)]) {
+        let mut counts = [0u32; 3];
+        let mut expected = HashMap::new();
+        for &(slot, corner) in lookups {
+            let next = counts[slot];
+            let want = *expected.entry((slot, corner)).or_insert(next);
+            let (got, new) = weld.vertex(slot, corner, next).unwrap();
+            assert_eq!((got, new), (want, want == next), "{slot} {corner:?}");
+            counts[slot] += u32::from(new);
+        }
+    }
+
+    #[test]
+    fn a_position_with_more_vertices_than_a_chain_holds_still_welds_exactly() {
+        let mut weld = CornerWeld::new(2);
+        // Three times a chain's length of texture coordinates at one position, in two
+        // primitives, each asked for again in reverse order.
+        let uvs = 0..3 * CHAIN_LIMIT as u32;
+        let corner = |uv| Corner {
+            position: 1,
+            uv: Some(uv),
+            normal: None,
+        };
+        let mut lookups: Vec<(usize, Corner)> = Vec::new();
+        for slot in [0, 1] {
+            lookups.extend(uvs.clone().map(|uv| (slot, corner(uv))));
+        }
+        let again: Vec<_> = lookups.iter().rev().copied().collect();
+        lookups.extend(again);
+        weld_against_a_map(&mut weld, &lookups);
+        assert!(!weld.overflow.is_empty());
+        // The next mesh starts from nothing, and a position the table lacks is refused.
+        weld.clear();
+        assert!(weld.heads.iter().all(|&h| h == NO_ENTRY) && weld.overflow.is_empty());
+        weld_against_a_map(&mut weld, &lookups[..5]);
+        assert_eq!(
+            weld.vertex(
+                0,
+                Corner {
+                    position: 2,
+                    ..corner(0)
+                },
+                0
+            ),
+            None
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn the_corner_weld_numbers_corners_as_a_map_does(
+            lookups in proptest::collection::vec(
+                (0..3usize, 0..4u32, proptest::option::of(0..40u32), proptest::option::of(0..3u32)),
+                0..400,
+            )
+        ) {
+            let lookups: Vec<(usize, Corner)> = lookups
+                .into_iter()
+                .map(|(slot, position, uv, normal)| (slot, Corner { position, uv, normal }))
+                .collect();
+            weld_against_a_map(&mut CornerWeld::new(4), &lookups);
         }
     }
 
