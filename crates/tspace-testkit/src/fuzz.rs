@@ -8,7 +8,8 @@
 //! - [`glb()`]: the GLB container (split, rewritten byte for byte), then the whole scene path.
 //! - [`gltf()`]: the JSON parser, every accessor decoded, then the whole scene path, for GLB and
 //!   `.gltf` input alike, with no external resources.
-//! - [`obj`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte.
+//! - [`obj`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte; the parallel
+//!   reader is checked against the sequential one on the text cut into a few chunks.
 //! - [`parts`]: a multipart upload, as length-prefixed records (see [`parts`]).
 //! - [`draco()`]: a Draco stream under a declared layout, decoded on its own and then through
 //!   the whole scene path.
@@ -25,6 +26,7 @@ use tspace::scene::gltf::draco;
 use tspace::scene::gltf::glb as glb_container;
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
 use tspace::scene::input::{self, InputKind};
+use tspace::scene::obj;
 use tspace::scene::uri::PartSet;
 use tspace::scene::{Normals, OutputFormat, SceneLimits, SceneOptions, TangentType};
 use tspace_tangent::{
@@ -232,6 +234,17 @@ pub fn obj(data: &[u8]) {
         ..options
     };
     run_scene(InputKind::Obj, text, &parts, &axis);
+    // The parallel reader, on the text cut where lines end, gives up or reads the same file.
+    let pieces = (h >> 9 & 15) as usize + 1;
+    let limits = obj::Limits::default();
+    if let Some(chunked) = obj::parse_in_chunks_for_testing(text, pieces, &limits) {
+        // Compared as printed, where NaN equals NaN.
+        let sequential = obj::parse_obj(text, &limits).map(|o| format!("{o:?}"));
+        assert_eq!(
+            Ok(format!("{chunked:?}")),
+            sequential.map_err(|e| e.to_string())
+        );
+    }
 }
 
 /// One field of a multipart upload.

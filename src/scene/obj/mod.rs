@@ -38,10 +38,16 @@
 //!
 //! Memory is bounded by the input's length and by [`Limits`]: each element, corner and triangle
 //! comes from bytes actually present, and the counts are checked before anything is added.
+//!
+//! A file of 2 MiB or more is read in chunks of lines on the thread pool, to exactly the [`Obj`]
+//! the sequential reader makes; on anything unusual the chunks give up and the file is read
+//! sequentially (see [`chunks`]).
 
 use glam::DVec3;
 use std::borrow::Cow;
 use std::fmt;
+
+mod chunks;
 
 /// Caps on what one file may hold; exceeding one is an error, never a truncation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -249,8 +255,13 @@ struct Lines<'a> {
 
 impl<'a> Lines<'a> {
     fn new(bytes: &'a [u8]) -> Self {
+        Self::continuing(bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes))
+    }
+
+    /// Lines of a piece of a file after its start, where a byte order mark is no such thing.
+    fn continuing(bytes: &'a [u8]) -> Self {
         Lines {
-            rest: bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes),
+            rest: bytes,
             next_line: 1,
         }
     }
@@ -585,22 +596,31 @@ struct Reader<'l> {
     has_uv: Vec<bool>,
     polygon: Vec<[f32; 3]>,
     local: Vec<[usize; 3]>,
+    /// Set when reading one chunk of a file among others (see [`chunks`]): what the chunk
+    /// cannot know of the file before it.
+    chunk: Option<Box<chunks::ChunkState>>,
 }
 
 /// Reads an OBJ file (see the module documentation for the dialect and the decisions).
 pub fn parse_obj(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
-    let mut reader = Reader {
-        limits,
-        obj: Obj::default(),
-        key: GroupKey::default(),
-        smoothing: 0,
-        group_current: false,
-        triangles: 0,
-        corners: Vec::new(),
-        has_uv: Vec::new(),
-        polygon: Vec::new(),
-        local: Vec::new(),
-    };
+    if let Some(obj) = chunks::parse_in_chunks(bytes, limits) {
+        return Ok(obj);
+    }
+    parse_sequentially(bytes, limits)
+}
+
+/// [`parse_obj`]'s parallel reader on `bytes` cut into about `pieces` chunks, whatever its
+/// size; `None` where it gives up (see [`chunks`]). For the fuzz target, which checks it against
+/// the sequential reader on inputs far smaller than those it is used for.
+#[doc(hidden)]
+pub fn parse_in_chunks_for_testing(bytes: &[u8], pieces: usize, limits: &Limits) -> Option<Obj> {
+    chunks::read_pieces(&chunks::split_at_lines(bytes, pieces), limits)
+}
+
+/// [`parse_obj`] on one thread, statement after statement: the reference for
+/// [`chunks::parse_in_chunks`], and what gives every error its line.
+fn parse_sequentially(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
+    let mut reader = Reader::new(limits, None);
     for (line, text) in Lines::new(bytes) {
         if let Some(statement) = split(&text) {
             reader.statement(&statement, line)?;
@@ -611,7 +631,27 @@ pub fn parse_obj(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
     Ok(obj)
 }
 
-impl Reader<'_> {
+impl<'l> Reader<'l> {
+    fn new(limits: &'l Limits, chunk: Option<Box<chunks::ChunkState>>) -> Self {
+        Reader {
+            limits,
+            obj: Obj::default(),
+            key: GroupKey::default(),
+            smoothing: if chunk.is_some() {
+                chunks::INHERITED
+            } else {
+                0
+            },
+            group_current: false,
+            triangles: 0,
+            corners: Vec::new(),
+            has_uv: Vec::new(),
+            polygon: Vec::new(),
+            local: Vec::new(),
+            chunk,
+        }
+    }
+
     fn statement(&mut self, s: &Statement<'_>, line: usize) -> Result<(), ObjError> {
         let max_vertices = self.limits.max_vertices;
         match s.keyword {
@@ -638,14 +678,18 @@ impl Reader<'_> {
             b"l" => self.obj.warnings.lines_skipped += 1,
             b"p" => self.obj.warnings.points_skipped += 1,
             b"o" => {
-                self.set_key(|k| k.object = (!s.rest.is_empty()).then(|| lossy(s.rest)));
+                self.set_key(chunks::OBJECT, |k| {
+                    k.object = (!s.rest.is_empty()).then(|| lossy(s.rest));
+                });
             }
             b"g" => {
                 let groups = s.args.iter().map(|g| lossy(g)).collect();
-                self.set_key(|k| k.groups = groups);
+                self.set_key(chunks::GROUPS, |k| k.groups = groups);
             }
             b"usemtl" => {
-                self.set_key(|k| k.material = (!s.rest.is_empty()).then(|| lossy(s.rest)));
+                self.set_key(chunks::MATERIAL, |k| {
+                    k.material = (!s.rest.is_empty()).then(|| lossy(s.rest));
+                });
             }
             b"s" => {
                 let smoothing = match s.args.first() {
@@ -666,6 +710,10 @@ impl Reader<'_> {
                             )
                         })?,
                 };
+                if self.chunk.is_some() && smoothing == chunks::INHERITED {
+                    // The one value a chunk keeps for "as before the chunk": read in order.
+                    return Err(chunks::unreadable(line));
+                }
                 self.smoothing = smoothing;
                 self.obj.smoothing_declared = true;
             }
@@ -736,12 +784,19 @@ impl Reader<'_> {
         }
     }
 
-    fn set_key(&mut self, change: impl FnOnce(&mut GroupKey)) {
+    /// Changes one `field` of the key (a [`chunks`] bit naming it).
+    fn set_key(&mut self, field: u8, change: impl FnOnce(&mut GroupKey)) {
         change(&mut self.key);
         self.group_current = false;
+        if let Some(chunk) = self.chunk.as_deref_mut() {
+            chunk.key_changed(field);
+        }
     }
 
     fn current_group(&mut self) -> &mut FaceGroup {
+        if let Some(chunk) = self.chunk.as_deref_mut() {
+            return chunk.current_group(&self.key, &mut self.group_current);
+        }
         let groups = &mut self.obj.groups;
         // Compared only after a statement changed the key, not for every face.
         let reusable = || {
@@ -797,14 +852,17 @@ impl Reader<'_> {
             if parts.next().is_some() {
                 return Err(bad());
             }
-            let corner = Corner {
-                position: resolve(position, "position", self.obj.positions.len(), line)?,
-                uv: uv
-                    .map(|t| resolve(t, "texture coordinate", self.obj.uvs.len(), line))
-                    .transpose()?,
-                normal: normal
-                    .map(|t| resolve(t, "normal", self.obj.normals.len(), line))
-                    .transpose()?,
+            let corner = match self.chunk.as_deref_mut() {
+                None => Corner {
+                    position: resolve(position, "position", self.obj.positions.len(), line)?,
+                    uv: uv
+                        .map(|t| resolve(t, "texture coordinate", self.obj.uvs.len(), line))
+                        .transpose()?,
+                    normal: normal
+                        .map(|t| resolve(t, "normal", self.obj.normals.len(), line))
+                        .transpose()?,
+                },
+                Some(chunk) => chunk.corner((position, uv, normal), &self.obj, line)?,
             };
             uvs += usize::from(corner.uv.is_some());
             normals += usize::from(corner.normal.is_some());
@@ -835,6 +893,15 @@ impl Reader<'_> {
         }
         self.triangles += added;
         self.local.clear();
+        if n > 3 && self.chunk.is_some() {
+            // Its positions may lie in an earlier chunk: triangulated once all are known.
+            let smoothing = self.smoothing;
+            self.current_group();
+            if let Some(chunk) = self.chunk.as_deref_mut() {
+                chunk.defer_polygon(&self.corners, smoothing);
+            }
+            return Ok(());
+        }
         if n == 3 {
             self.local.push([0, 1, 2]);
         } else {
