@@ -8,7 +8,7 @@
 //! - [`glb()`]: the GLB container (split, rewritten byte for byte), then the whole scene path.
 //! - [`gltf()`]: the JSON parser, every accessor decoded, then the whole scene path, for GLB and
 //!   `.gltf` input alike, with no external resources.
-//! - [`obj`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte; the parallel
+//! - [`obj()`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte; the parallel
 //!   reader is checked against the sequential one on the text cut into a few chunks.
 //! - [`parts`]: a multipart upload, as length-prefixed records (see [`parts`]).
 //! - [`draco()`]: a Draco stream under a declared layout, decoded on its own and then through

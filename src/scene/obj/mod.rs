@@ -41,7 +41,7 @@
 //!
 //! A file of 2 MiB or more is read in chunks of lines on the thread pool, to exactly the [`Obj`]
 //! the sequential reader makes; on anything unusual the chunks give up and the file is read
-//! sequentially (see [`chunks`]).
+//! sequentially (see the private `chunks` module).
 
 use glam::DVec3;
 use std::borrow::Cow;
@@ -610,7 +610,7 @@ pub fn parse_obj(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
 }
 
 /// [`parse_obj`]'s parallel reader on `bytes` cut into about `pieces` chunks, whatever its
-/// size; `None` where it gives up (see [`chunks`]). For the fuzz target, which checks it against
+/// size; `None` where it gives up (see the `chunks` module). For the fuzz target, which checks it against
 /// the sequential reader on inputs far smaller than those it is used for.
 #[doc(hidden)]
 pub fn parse_in_chunks_for_testing(bytes: &[u8], pieces: usize, limits: &Limits) -> Option<Obj> {
