@@ -661,38 +661,12 @@ fn plan_meshes(
     obj: &Obj,
     request: NormalRequest,
 ) -> Result<(Vec<Mesh<'_>>, Dropped, GeneratedNormals), ConvertError> {
-    let mut meshes = Vec::new();
-    let mut current: Option<(Option<&str>, Vec<&FaceGroup>)> = None;
     let mut dropped = Dropped::default();
     let mut generated = GeneratedNormals::default();
     let mut welded = CornerWeld::new(obj.positions.len());
-    for group in &obj.groups {
-        if group.triangles.is_empty() {
-            continue;
-        }
-        let object = group.object.as_deref();
-        // A new `o` name starts a new mesh, even one an earlier mesh had.
-        if current.as_ref().is_none_or(|(name, _)| *name != object) {
-            if let Some((name, groups)) = current.take() {
-                let mesh = plan_mesh(
-                    obj,
-                    name,
-                    &groups,
-                    request,
-                    &mut dropped,
-                    &mut generated,
-                    &mut welded,
-                )?;
-                meshes.push(mesh);
-            }
-            current = Some((object, Vec::new()));
-        }
-        if let Some((_, groups)) = current.as_mut() {
-            groups.push(group);
-        }
-    }
-    if let Some((name, groups)) = current {
-        let mesh = plan_mesh(
+    let mut meshes = Vec::new();
+    for (name, groups) in objects(obj) {
+        meshes.push(plan_mesh(
             obj,
             name,
             &groups,
@@ -700,8 +674,7 @@ fn plan_meshes(
             &mut dropped,
             &mut generated,
             &mut welded,
-        )?;
-        meshes.push(mesh);
+        )?);
     }
     if meshes.is_empty() {
         return Err(ConvertError::NoFaces);
@@ -714,6 +687,20 @@ fn plan_meshes(
         });
     }
     Ok((meshes, dropped, generated))
+}
+
+/// The OBJ's face groups that have faces, gathered by object in file order. A new `o` name
+/// starts a new object, even one an earlier object had.
+fn objects(obj: &Obj) -> Vec<(Option<&str>, Vec<&FaceGroup>)> {
+    let mut objects: Vec<(Option<&str>, Vec<&FaceGroup>)> = Vec::new();
+    for group in obj.groups.iter().filter(|g| !g.triangles.is_empty()) {
+        let object = group.object.as_deref();
+        match objects.last_mut() {
+            Some((name, groups)) if *name == object => groups.push(group),
+            _ => objects.push((object, vec![group])),
+        }
+    }
+    objects
 }
 
 /// One object's mesh, in two passes over its faces, so that nothing per triangle is kept
