@@ -22,7 +22,7 @@
 
 use super::{
     Corner, FaceGroup, GroupKey, Limits, Lines, Obj, ObjError, ObjErrorKind, Reader, Triangulation,
-    error, parse_i64, split, triangulate,
+    error, parse_i64, triangulate,
 };
 use rayon::prelude::*;
 
@@ -142,6 +142,21 @@ impl ChunkState {
         })
     }
 
+    /// Records how far a plain triangle's corner reaches (see [`ChunkState::reach`]): its
+    /// 1-based indices, where present, against the elements `defined` in the chunk so far.
+    pub(super) fn reach_to(&mut self, indices: [Option<u32>; 3], defined: [usize; 3]) {
+        for ((reach, index), defined) in self.reach.iter_mut().zip(indices).zip(defined) {
+            if let Some(i) = index {
+                *reach = (*reach).max(i64::from(i) - defined as i64);
+            }
+        }
+    }
+
+    #[cfg(test)]
+    pub(super) fn reach_for_testing(&self) -> [i64; 3] {
+        self.reach
+    }
+
     /// Keeps a polygon for later, at its place in the last segment.
     pub(super) fn defer_polygon(&mut self, corners: &[Corner], smoothing: u32) {
         let segment = self.segments.len().saturating_sub(1);
@@ -224,9 +239,7 @@ fn read_chunk(bytes: &[u8], first: bool, limits: &Limits) -> Option<Chunk> {
         Lines::continuing(bytes)
     };
     for (line, text) in lines {
-        if let Some(statement) = split(&text) {
-            reader.statement(&statement, line).ok()?;
-        }
+        reader.line(&text, line).ok()?;
     }
     let state = *reader.chunk?;
     Some(Chunk {

@@ -401,6 +401,67 @@ impl<'l> std::ops::Deref for Args<'l> {
     }
 }
 
+/// The next whitespace-separated token of `rest`, which moves past it.
+#[inline]
+fn next_token<'a>(rest: &mut &'a [u8]) -> Option<&'a [u8]> {
+    let start = rest.iter().position(|&b| !is_space(b))?;
+    let tail = &rest[start..];
+    let len = tail.iter().position(|&b| is_space(b)).unwrap_or(tail.len());
+    *rest = &tail[len..];
+    Some(&tail[..len])
+}
+
+/// Exactly `N` numbers and nothing else, or `None`.
+#[inline]
+fn exact_numbers<const N: usize>(mut rest: &[u8]) -> Option<[f32; N]> {
+    let mut out = [0.0; N];
+    for value in &mut out {
+        *value = parse_f32(next_token(&mut rest)?)?;
+    }
+    next_token(&mut rest).is_none().then_some(out)
+}
+
+/// A corner in one of the four plain forms, `p`, `p/t`, `p//n` and `p/t/n`, each index of one
+/// to nine digits and not zero: its three 1-based indices (0 where absent) and whether it has a
+/// texture coordinate and a normal. `None` for anything else.
+#[inline]
+fn plain_corner(token: &[u8]) -> Option<([u32; 3], (bool, bool))> {
+    let mut indices = [0u32; 3];
+    let mut field = 0;
+    let mut digits = 0;
+    let mut present = [false; 3];
+    for &b in token {
+        if b == b'/' {
+            field += 1;
+            if field > 2 {
+                return None;
+            }
+            digits = 0;
+            continue;
+        }
+        let digit = b.wrapping_sub(b'0');
+        if digit > 9 || digits == 9 {
+            return None;
+        }
+        indices[field] = indices[field] * 10 + u32::from(digit);
+        digits += 1;
+        present[field] = true;
+    }
+    // Every field that is written holds a non-zero index; only `p//n` leaves one empty.
+    let shape = (present[1], present[2]);
+    let expected_fields = match shape {
+        (false, false) => 0,
+        (true, false) => 1,
+        (_, true) => 2,
+    };
+    let written_ok = field == expected_fields
+        && present[0]
+        && indices[0] != 0
+        && (!present[1] || indices[1] != 0)
+        && (!present[2] || indices[2] != 0);
+    written_ok.then_some((indices, shape))
+}
+
 /// `u8::is_ascii_whitespace` (space, tab, line feed, form feed, carriage return) as one test of
 /// a bit: the tokenizer asks it of every byte of the file.
 #[inline(always)]
@@ -622,9 +683,7 @@ pub fn parse_in_chunks_for_testing(bytes: &[u8], pieces: usize, limits: &Limits)
 fn parse_sequentially(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
     let mut reader = Reader::new(limits, None);
     for (line, text) in Lines::new(bytes) {
-        if let Some(statement) = split(&text) {
-            reader.statement(&statement, line)?;
-        }
+        reader.line(&text, line)?;
     }
     let Reader { mut obj, .. } = reader;
     obj.groups.retain(|g| !g.triangles.is_empty());
@@ -650,6 +709,151 @@ impl<'l> Reader<'l> {
             local: Vec::new(),
             chunk,
         }
+    }
+
+    /// One logical line. The statements a large file is made of are read in one pass over their
+    /// bytes (see [`Reader::common_statement`]); anything else goes through [`split`] and
+    /// [`Reader::statement`], which read it from the start.
+    fn line(&mut self, text: &[u8], line: usize) -> Result<(), ObjError> {
+        if self.common_statement(text) {
+            return Ok(());
+        }
+        match split(text) {
+            Some(statement) => self.statement(&statement, line),
+            None => Ok(()),
+        }
+    }
+
+    /// Reads `text` if it is one of the statements exporters write millions of, in its plain
+    /// form: `v`, `vt` or `vn` with exactly three, two or three numbers, or a triangle whose
+    /// three corners are positive indices in range with the same attributes. Returns whether it
+    /// did. Otherwise it has changed nothing, and the general path reads the line, finding any
+    /// error and warning there; for the lines it reads, this does exactly what that path would.
+    /// (Tokenizing the whole line into a slice of tokens, then each corner again at its
+    /// slashes, was half of reading a million-triangle OBJ.)
+    fn common_statement(&mut self, text: &[u8]) -> bool {
+        let text = text.trim_ascii_start();
+        let max_vertices = self.limits.max_vertices;
+        match text {
+            [b'f', space, rest @ ..] if is_space(*space) => self.common_triangle(rest),
+            [b'v', space, rest @ ..] if is_space(*space) => {
+                let Some(xyz) = exact_numbers::<3>(rest) else {
+                    return false;
+                };
+                if self.obj.positions.len() >= max_vertices {
+                    return false;
+                }
+                let obj = &mut self.obj;
+                if let Some(colors) = obj.colors.as_mut() {
+                    colors.push([1.0; 3]);
+                    obj.warnings.vertices_without_color += 1;
+                }
+                obj.positions.push(xyz);
+                obj.statements += 1;
+                true
+            }
+            [b'v', b't', space, rest @ ..] if is_space(*space) => {
+                let Some(uv) = exact_numbers::<2>(rest) else {
+                    return false;
+                };
+                if self.obj.uvs.len() >= max_vertices {
+                    return false;
+                }
+                self.obj.uvs.push(uv);
+                self.obj.statements += 1;
+                true
+            }
+            [b'v', b'n', space, rest @ ..] if is_space(*space) => {
+                let Some(normal) = exact_numbers::<3>(rest) else {
+                    return false;
+                };
+                if self.obj.normals.len() >= max_vertices {
+                    return false;
+                }
+                self.obj.normals.push(normal);
+                self.obj.statements += 1;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// A triangle for [`Reader::common_statement`]: `rest` is the text after `f`.
+    fn common_triangle(&mut self, mut rest: &[u8]) -> bool {
+        if self.limits.max_polygon_corners < 3 || self.triangles >= self.limits.max_triangles {
+            return false;
+        }
+        let mut corners = [Corner {
+            position: 0,
+            uv: None,
+            normal: None,
+        }; 3];
+        // The 1-based indices, to check against what is defined.
+        let mut indices = [[0u32; 3]; 3];
+        let mut shape = None;
+        for (corner, index) in corners.iter_mut().zip(&mut indices) {
+            let Some((read, this_shape)) = next_token(&mut rest).and_then(plain_corner) else {
+                return false;
+            };
+            if shape.is_some_and(|s| s != this_shape) {
+                return false;
+            }
+            shape = Some(this_shape);
+            *index = read;
+            *corner = Corner {
+                position: read[0] - 1,
+                uv: this_shape.0.then(|| read[1] - 1),
+                normal: this_shape.1.then(|| read[2] - 1),
+            };
+        }
+        if next_token(&mut rest).is_some() {
+            return false;
+        }
+        let Some((has_uv, has_normal)) = shape else {
+            return false;
+        };
+        let defined = [
+            self.obj.positions.len(),
+            if has_uv {
+                self.obj.uvs.len()
+            } else {
+                usize::MAX
+            },
+            if has_normal {
+                self.obj.normals.len()
+            } else {
+                usize::MAX
+            },
+        ];
+        match self.chunk.as_deref_mut() {
+            None => {
+                let in_range = indices
+                    .iter()
+                    .all(|i| i.iter().zip(defined).all(|(&i, d)| i as usize <= d));
+                if !in_range {
+                    return false;
+                }
+            }
+            Some(chunk) => {
+                for i in &indices {
+                    chunk.reach_to(
+                        [
+                            Some(i[0]),
+                            has_uv.then_some(i[1]),
+                            has_normal.then_some(i[2]),
+                        ],
+                        defined,
+                    );
+                }
+            }
+        }
+        let smoothing = self.smoothing;
+        let group = self.current_group();
+        group.triangles.push(corners);
+        group.smoothing.push(smoothing);
+        self.triangles += 1;
+        self.obj.statements += 1;
+        true
     }
 
     fn statement(&mut self, s: &Statement<'_>, line: usize) -> Result<(), ObjError> {
@@ -2249,6 +2453,83 @@ mod tests {
             0..6,
         )
         .prop_map(|parts| parts.concat())
+    }
+
+    /// What a line does to a reader that has read `before`, through [`Reader::line`] (with
+    /// its one-pass reading of common statements) and through the general path alone.
+    fn both_paths(before: &str, text: &str, chunk: bool) -> [String; 2] {
+        let limits = Limits {
+            max_vertices: 7,
+            max_triangles: 2,
+            ..Limits::default()
+        };
+        let run = |general_only: bool| {
+            let state = chunk.then(Box::default);
+            let mut reader = Reader::new(&limits, state);
+            // The lines before through the general path in both runs, so that only `text`
+            // can tell the two apart.
+            for (line, before) in Lines::new(before.as_bytes()) {
+                if let Some(statement) = split(&before) {
+                    reader.statement(&statement, line).unwrap();
+                }
+            }
+            let result = if general_only {
+                match split(text.as_bytes()) {
+                    Some(statement) => reader.statement(&statement, 7),
+                    None => Ok(()),
+                }
+            } else {
+                reader.line(text.as_bytes(), 7)
+            };
+            let reach = reader.chunk.as_deref().map(|c| c.reach_for_testing());
+            format!("{result:?} {:?} {reach:?} {}", reader.obj, reader.triangles)
+        };
+        [run(false), run(true)]
+    }
+
+    proptest! {
+        // Many cases: the statements that tell the two paths apart (an index one past what is
+        // defined, on the right count of elements) are a few percent of those drawn.
+        #![proptest_config(ProptestConfig::with_cases(4096))]
+
+        #[test]
+        fn common_statements_read_as_the_general_path_reads_them(
+            before in prop::sample::select(vec![
+                "", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n",
+                "v 0 0 0 1 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 1\nv 2 2 2\nv 3 3 3\nvt 0 0\nvt 1 1\n",
+                "vn 0 0 1\nvn 1 0 0\ns 3\nusemtl m\n",
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1 2 3\n",
+                // Triangles at their limit of 2, then every kind of element at its limit of 7.
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 3 2 1\n",
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 1\nv 2 2 2\nv 3 3 3\nv 4 4 4\n\
+                 vt 0 0\nvt 1 1\nvt 0 1\nvt 1 0\nvt 2 2\nvt 3 3\nvt 4 4\n\
+                 vn 0 0 1\nvn 1 0 0\nvn 0 1 0\nvn 1 1 0\nvn 0 1 1\nvn 1 0 1\nvn 1 1 1\n",
+            ]),
+            keyword in prop::sample::select(vec!["f", "v", "vt", "vn", " f", "fo", "f\t", "v\x0b"]),
+            // Mostly three plain corners or numbers, the shape the one-pass reading takes.
+            tokens in prop_oneof![
+                proptest::collection::vec(
+                    prop::sample::select(vec![
+                        "1", "2", "3", "4", "6", "7", "1/1", "2/2", "1/3", "3/1", "4/2", "1//1",
+                        "2//2", "4//1", "1//3", "1/1/1", "2/2/2", "3/1/2", "1/2/3", "0.5", "-2", "0", "1/0", "0//1",
+                    ]),
+                    3..=3,
+                ),
+                proptest::collection::vec(
+                    prop::sample::select(vec![
+                        "1", "2", "3", "4", "7", "0", "01", "+1", "-1", "1/1", "2/1", "1//1",
+                        "3//2", "1/1/1", "2/2/1", "1/", "1//", "1/1/", "/1", "1/1/1/1", "1a",
+                        "1234567890", "0.5", "-0.25", "1e3", "nan", "inf", "", " ", "#",
+                    ]),
+                    0..6,
+                ),
+            ],
+            chunk in any::<bool>(),
+        ) {
+            let text = format!("{keyword} {}", tokens.join(" "));
+            let [fast, general] = both_paths(before, &text, chunk);
+            prop_assert_eq!(fast, general, "{:?}", text);
+        }
     }
 
     proptest! {
