@@ -3157,6 +3157,60 @@ mod tests {
         }
     }
 
+    /// A file read in chunks may come with a run split where a chunk ended (see `FaceGroup`):
+    /// the conversion must not see the difference.
+    #[test]
+    fn a_run_split_into_groups_of_the_same_key_converts_as_one_run() {
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nvt 0 0\nvt 1 0\n\
+                    vt 1 1\nvn 0 0 1\nvn 0 1 0\no a\nusemtl m\ns 1\nf 1/1/1 2/2/1 3/3/1\n\
+                    f 1/1 3/3 4/2\ns off\nf 1 2 5\nf 2 6 5\nusemtl n\nf 1/1/2 2/2/2 6/3/2\n\
+                    f 4 3 6 5\no b\nf 1 2 3\nf 3 4 1\nusemtl m\nf 1 5 6\n";
+        let whole = obj(text);
+        assert_eq!(whole.groups.len(), 4);
+        let whole_converted = convert_obj(&whole).unwrap();
+        // Every way of cutting each group at one place, and every group cut everywhere.
+        let cut = |at: &dyn Fn(usize, usize) -> Vec<usize>| {
+            let mut split = whole.clone();
+            split.groups = whole
+                .groups
+                .iter()
+                .enumerate()
+                .flat_map(|(g, group)| {
+                    let mut ends = at(g, group.triangles.len());
+                    ends.push(group.triangles.len());
+                    let mut start = 0;
+                    ends.into_iter().map(move |end| {
+                        let piece = FaceGroup {
+                            triangles: group.triangles[start..end].to_vec(),
+                            smoothing: group.smoothing[start..end].to_vec(),
+                            ..group.clone()
+                        };
+                        start = end;
+                        piece
+                    })
+                })
+                .collect();
+            split
+        };
+        let mut tried = 0;
+        for g in 0..whole.groups.len() {
+            for place in 0..=whole.groups[g].triangles.len() {
+                let split = cut(&|group, _| if group == g { vec![place] } else { vec![] });
+                assert_eq!(split.groups.len(), whole.groups.len() + 1);
+                assert_eq!(
+                    convert_obj(&split).unwrap(),
+                    whole_converted,
+                    "group {g} at {place}"
+                );
+                tried += 1;
+            }
+        }
+        let everywhere = cut(&|_, len| (0..len).collect());
+        assert!(everywhere.groups.len() > 2 * whole.groups.len());
+        assert_eq!(convert_obj(&everywhere).unwrap(), whole_converted);
+        assert!(tried > 8);
+    }
+
     #[test]
     fn unusable_normals_and_uvs_are_dropped_per_triangle_and_bad_positions_drop_it() {
         // Triangle 1 has NaN and infinite positions: dropped. Triangle 2 has a NaN UV, 3 a

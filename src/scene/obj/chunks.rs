@@ -348,19 +348,24 @@ fn assemble(mut chunks: Vec<Chunk>, limits: &Limits) -> Option<Obj> {
             let reusable = obj.groups.last().is_some_and(|g| {
                 g.object == key.object && g.groups == key.groups && g.material == key.material
             });
-            match obj.groups.last_mut() {
-                Some(last) if group_current || reusable => {
-                    last.triangles.extend_from_slice(&group.triangles);
-                    last.smoothing.extend_from_slice(&group.smoothing);
-                }
-                _ => obj.groups.push(FaceGroup {
-                    object: key.object.clone(),
-                    groups: key.groups.clone(),
-                    material: key.material.clone(),
-                    triangles: group.triangles,
-                    smoothing: group.smoothing,
-                }),
-            }
+            // A segment that continues the last group's run becomes a group of its own with
+            // the same key rather than being copied onto it: the run is split where the chunks
+            // were cut, as `FaceGroup` allows, and a million triangles are not copied again.
+            let run_key = match obj.groups.last() {
+                Some(last) if group_current || reusable => GroupKey {
+                    object: last.object.clone(),
+                    groups: last.groups.clone(),
+                    material: last.material.clone(),
+                },
+                _ => key.clone(),
+            };
+            obj.groups.push(FaceGroup {
+                object: run_key.object,
+                groups: run_key.groups,
+                material: run_key.material,
+                triangles: group.triangles,
+                smoothing: group.smoothing,
+            });
             group_current = true;
         }
         if state.changed {
@@ -371,6 +376,26 @@ fn assemble(mut chunks: Vec<Chunk>, limits: &Limits) -> Option<Obj> {
     }
     obj.groups.retain(|g| !g.triangles.is_empty());
     Some(obj)
+}
+
+/// The runs [`assemble`] split where the chunks were cut, joined again: the groups the
+/// sequential reader makes, for comparing the two readers.
+pub(super) fn join_split_runs(obj: &mut Obj) {
+    let mut joined: Vec<FaceGroup> = Vec::with_capacity(obj.groups.len());
+    for group in std::mem::take(&mut obj.groups) {
+        match joined.last_mut() {
+            Some(last)
+                if last.object == group.object
+                    && last.groups == group.groups
+                    && last.material == group.material =>
+            {
+                last.triangles.extend(group.triangles);
+                last.smoothing.extend(group.smoothing);
+            }
+            _ => joined.push(group),
+        }
+    }
+    obj.groups = joined;
 }
 
 /// Positions, colours, texture coordinates and normals, chunk after chunk.
@@ -493,9 +518,10 @@ mod tests {
         for piece in &pieces[..pieces.len().saturating_sub(1)] {
             assert!(piece.ends_with(b"\n"));
         }
-        let Some(chunked) = read_pieces(&pieces, limits) else {
+        let Some(mut chunked) = read_pieces(&pieces, limits) else {
             return true;
         };
+        join_split_runs(&mut chunked);
         let sequential = parse_sequentially(text, limits);
         assert_eq!(
             Ok(&chunked),

@@ -79,7 +79,9 @@ pub struct Corner {
 }
 
 /// A run of faces sharing object, groups and material, in file order. A change of any of them
-/// starts a new run; runs are not merged, so a material used twice gives two runs. Smoothing
+/// starts a new run; runs are not merged, so a material used twice gives two runs. A file read
+/// in chunks may have a run split where a chunk ended, continued by the next group with the
+/// same object, groups and material (joining them would copy every triangle again). Smoothing
 /// groups change too often to split runs (exporters switch them every few faces), so they are
 /// kept per triangle.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -671,11 +673,14 @@ pub fn parse_obj(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
 }
 
 /// [`parse_obj`]'s parallel reader on `bytes` cut into about `pieces` chunks, whatever its
-/// size; `None` where it gives up (see the `chunks` module). For the fuzz target, which checks it against
-/// the sequential reader on inputs far smaller than those it is used for.
+/// size, with the runs it splits where chunks end joined again; `None` where it gives up (see
+/// the `chunks` module). For the fuzz target, which checks it against the sequential reader on
+/// inputs far smaller than those it is used for.
 #[doc(hidden)]
 pub fn parse_in_chunks_for_testing(bytes: &[u8], pieces: usize, limits: &Limits) -> Option<Obj> {
-    chunks::read_pieces(&chunks::split_at_lines(bytes, pieces), limits)
+    let mut obj = chunks::read_pieces(&chunks::split_at_lines(bytes, pieces), limits)?;
+    chunks::join_split_runs(&mut obj);
+    Some(obj)
 }
 
 /// [`parse_obj`] on one thread, statement after statement: the reference for
