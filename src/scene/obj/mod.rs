@@ -418,50 +418,93 @@ fn next_token<'a>(rest: &mut &'a [u8]) -> Option<&'a [u8]> {
 fn exact_numbers<const N: usize>(mut rest: &[u8]) -> Option<[f32; N]> {
     let mut out = [0.0; N];
     for value in &mut out {
-        *value = parse_f32(next_token(&mut rest)?)?;
+        *value = next_number(&mut rest)?;
     }
-    next_token(&mut rest).is_none().then_some(out)
+    (!skip_space(&mut rest)).then_some(out)
 }
 
-/// A corner in one of the four plain forms, `p`, `p/t`, `p//n` and `p/t/n`, each index of one
-/// to nine digits and not zero: its three 1-based indices (0 where absent) and whether it has a
-/// texture coordinate and a normal. `None` for anything else.
-#[inline]
-fn plain_corner(token: &[u8]) -> Option<([u32; 3], (bool, bool))> {
-    let mut indices = [0u32; 3];
-    let mut field = 0;
-    let mut digits = 0;
-    let mut present = [false; 3];
-    for &b in token {
-        if b == b'/' {
-            field += 1;
-            if field > 2 {
-                return None;
-            }
-            digits = 0;
-            continue;
+/// Moves `rest` past whitespace; whether anything is left.
+#[inline(always)]
+fn skip_space(rest: &mut &[u8]) -> bool {
+    while let [b, tail @ ..] = *rest {
+        if !is_space(*b) {
+            return true;
         }
+        *rest = tail;
+    }
+    false
+}
+
+/// Whether `rest` starts where a token ends: at whitespace or the end of the line.
+#[inline(always)]
+fn at_token_end(rest: &[u8]) -> bool {
+    rest.first().is_none_or(|&b| is_space(b))
+}
+
+/// The next token of `rest` as a number ([`parse_f32`]), moving past it. A plain decimal is
+/// read as its bytes are met; only another spelling is first cut out as a token, so that most
+/// numbers are read in one pass instead of two.
+#[inline(always)]
+fn next_number(rest: &mut &[u8]) -> Option<f32> {
+    if !skip_space(rest) {
+        return None;
+    }
+    if let Some((value, len)) = short_decimal_prefix(rest)
+        && at_token_end(&rest[len..])
+    {
+        *rest = &rest[len..];
+        return Some(value);
+    }
+    parse_f32(next_token(rest)?)
+}
+
+/// The next corner of `rest` in one of the four plain forms, `p`, `p/t`, `p//n` and `p/t/n`,
+/// each index of one to nine digits and not zero, moving past it: its three 1-based indices (0
+/// where absent) and whether it has a texture coordinate and a normal. `None` for anything else.
+#[inline(always)]
+fn next_plain_corner(rest: &mut &[u8]) -> Option<([u32; 3], (bool, bool))> {
+    if !skip_space(rest) {
+        return None;
+    }
+    let mut indices = [plain_index(rest)?, 0, 0];
+    let mut shape = (false, false);
+    if let [b'/', tail @ ..] = *rest {
+        *rest = tail;
+        if let [b'/', tail @ ..] = *rest {
+            *rest = tail;
+            indices[2] = plain_index(rest)?;
+            shape = (false, true);
+        } else {
+            indices[1] = plain_index(rest)?;
+            shape.0 = true;
+            if let [b'/', tail @ ..] = *rest {
+                *rest = tail;
+                indices[2] = plain_index(rest)?;
+                shape.1 = true;
+            }
+        }
+    }
+    at_token_end(rest).then_some((indices, shape))
+}
+
+/// One to nine digits at the start of `rest`, not all zero, moving past them.
+#[inline(always)]
+fn plain_index(rest: &mut &[u8]) -> Option<u32> {
+    let mut value = 0u32;
+    let mut digits = 0;
+    while let Some(&b) = rest.get(digits) {
         let digit = b.wrapping_sub(b'0');
-        if digit > 9 || digits == 9 {
+        if digit > 9 {
+            break;
+        }
+        if digits == 9 {
             return None;
         }
-        indices[field] = indices[field] * 10 + u32::from(digit);
+        value = value * 10 + u32::from(digit);
         digits += 1;
-        present[field] = true;
     }
-    // Every field that is written holds a non-zero index; only `p//n` leaves one empty.
-    let shape = (present[1], present[2]);
-    let expected_fields = match shape {
-        (false, false) => 0,
-        (true, false) => 1,
-        (_, true) => 2,
-    };
-    let written_ok = field == expected_fields
-        && present[0]
-        && indices[0] != 0
-        && (!present[1] || indices[1] != 0)
-        && (!present[2] || indices[2] != 0);
-    written_ok.then_some((indices, shape))
+    *rest = &rest[digits..];
+    (value != 0).then_some(value)
 }
 
 /// `u8::is_ascii_whitespace` (space, tab, line feed, form feed, carriage return) as one test of
@@ -510,17 +553,26 @@ fn parse_f32(token: &[u8]) -> Option<f32> {
 /// triangle OBJ holds millions of numbers; checking each token as UTF-8 and handing it to the
 /// general parser was a sixth of the time spent reading it.
 fn short_decimal(token: &[u8]) -> Option<f32> {
+    short_decimal_prefix(token).and_then(|(value, len)| (len == token.len()).then_some(value))
+}
+
+/// [`short_decimal`] of the longest start of `bytes` made of a sign, digits and one point: its
+/// value and length, or `None` where that start is not such a decimal. The caller checks what
+/// follows it.
+#[inline(always)]
+fn short_decimal_prefix(bytes: &[u8]) -> Option<(f32, usize)> {
     const POWERS: [f32; 11] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10];
-    let (negative, digits) = match token.split_first() {
-        Some((b'-', rest)) => (true, rest),
-        Some((b'+', rest)) => (false, rest),
-        _ => (false, token),
+    let (negative, start) = match bytes.first() {
+        Some(b'-') => (true, 1),
+        Some(b'+') => (false, 1),
+        _ => (false, 0),
     };
     let mut mantissa: u32 = 0;
     let mut seen_digit = false;
     let mut seen_point = false;
     let mut fraction_digits = 0usize;
-    for &b in digits {
+    let mut end = start;
+    while let Some(&b) = bytes.get(end) {
         match b {
             b'0'..=b'9' => {
                 mantissa = mantissa.checked_mul(10)?.checked_add(u32::from(b - b'0'))?;
@@ -531,14 +583,15 @@ fn short_decimal(token: &[u8]) -> Option<f32> {
                 fraction_digits += usize::from(seen_point);
             }
             b'.' if !seen_point => seen_point = true,
-            _ => return None,
+            _ => break,
         }
+        end += 1;
     }
     if !seen_digit {
         return None;
     }
     let magnitude = mantissa as f32 / *POWERS.get(fraction_digits)?;
-    Some(if negative { -magnitude } else { magnitude })
+    Some((if negative { -magnitude } else { magnitude }, end))
 }
 
 fn numbers<const N: usize>(
@@ -797,7 +850,7 @@ impl<'l> Reader<'l> {
         let mut indices = [[0u32; 3]; 3];
         let mut shape = None;
         for (corner, index) in corners.iter_mut().zip(&mut indices) {
-            let Some((read, this_shape)) = next_token(&mut rest).and_then(plain_corner) else {
+            let Some((read, this_shape)) = next_plain_corner(&mut rest) else {
                 return false;
             };
             if shape.is_some_and(|s| s != this_shape) {
@@ -811,7 +864,7 @@ impl<'l> Reader<'l> {
                 normal: this_shape.1.then(|| read[2] - 1),
             };
         }
-        if next_token(&mut rest).is_some() {
+        if skip_space(&mut rest) {
             return false;
         }
         let Some((has_uv, has_normal)) = shape else {
@@ -2525,6 +2578,8 @@ mod tests {
                         "1", "2", "3", "4", "7", "0", "01", "+1", "-1", "1/1", "2/1", "1//1",
                         "3//2", "1/1/1", "2/2/1", "1/", "1//", "1/1/", "/1", "1/1/1/1", "1a",
                         "1234567890", "0.5", "-0.25", "1e3", "nan", "inf", "", " ", "#",
+                        "1.2.3", "-", ".5", "3.", "-.5e1", "1.5x", "123456789.5", "+0.5",
+                        "1/2/3x", "1//2/", "123456789/1", "1/0/1", "2/1//", "1//01",
                     ]),
                     0..6,
                 ),
