@@ -238,9 +238,7 @@ fn read_chunk(bytes: &[u8], first: bool, limits: &Limits) -> Option<Chunk> {
     } else {
         Lines::continuing(bytes)
     };
-    for (line, text) in lines {
-        reader.line(&text, line).ok()?;
-    }
+    reader.read(lines).ok()?;
     let state = *reader.chunk?;
     Some(Chunk {
         obj: reader.obj,

@@ -403,36 +403,41 @@ impl<'l> std::ops::Deref for Args<'l> {
     }
 }
 
-/// The next whitespace-separated token of `rest`, which moves past it.
+/// Exactly `N` numbers and nothing else on the line, or `None`; with them, the text after the
+/// line (see [`line_end`]).
 #[inline]
-fn next_token<'a>(rest: &mut &'a [u8]) -> Option<&'a [u8]> {
-    let start = rest.iter().position(|&b| !is_space(b))?;
-    let tail = &rest[start..];
-    let len = tail.iter().position(|&b| is_space(b)).unwrap_or(tail.len());
-    *rest = &tail[len..];
-    Some(&tail[..len])
-}
-
-/// Exactly `N` numbers and nothing else, or `None`.
-#[inline]
-fn exact_numbers<const N: usize>(mut rest: &[u8]) -> Option<[f32; N]> {
+fn exact_numbers<const N: usize>(mut rest: &[u8]) -> Option<([f32; N], &[u8])> {
     let mut out = [0.0; N];
     for value in &mut out {
         *value = next_number(&mut rest)?;
     }
-    (!skip_space(&mut rest)).then_some(out)
+    Some((out, line_end(rest)?))
 }
 
-/// Moves `rest` past whitespace; whether anything is left.
+/// Moves `rest` past whitespace other than a line feed; whether anything is left. The
+/// statements read in one pass are read straight from the file's text, where a line feed ends
+/// the statement.
 #[inline(always)]
 fn skip_space(rest: &mut &[u8]) -> bool {
     while let [b, tail @ ..] = *rest {
-        if !is_space(*b) {
+        if !is_space(*b) || *b == b'\n' {
             return true;
         }
         *rest = tail;
     }
     false
+}
+
+/// After a statement's last token: the text after its line, where nothing but whitespace is
+/// left on the line (a `#` comment or a `\` continuation is not read here).
+#[inline(always)]
+fn line_end(mut rest: &[u8]) -> Option<&[u8]> {
+    skip_space(&mut rest);
+    match rest {
+        [] => Some(rest),
+        [b'\n', tail @ ..] => Some(tail),
+        _ => None,
+    }
 }
 
 /// Whether `rest` starts where a token ends: at whitespace or the end of the line.
@@ -449,13 +454,16 @@ fn next_number(rest: &mut &[u8]) -> Option<f32> {
     if !skip_space(rest) {
         return None;
     }
-    if let Some((value, len)) = short_decimal_prefix(rest)
-        && at_token_end(&rest[len..])
-    {
-        *rest = &rest[len..];
-        return Some(value);
-    }
-    parse_f32(next_token(rest)?)
+    let len = match short_decimal_prefix(rest) {
+        Some((value, len)) if at_token_end(&rest[len..]) => {
+            *rest = &rest[len..];
+            return Some(value);
+        }
+        _ => rest.iter().position(|&b| is_space(b)).unwrap_or(rest.len()),
+    };
+    let token = &rest[..len];
+    *rest = &rest[len..];
+    parse_f32(token)
 }
 
 /// The next corner of `rest` in one of the four plain forms, `p`, `p/t`, `p//n` and `p/t/n`,
@@ -740,15 +748,30 @@ pub fn parse_in_chunks_for_testing(bytes: &[u8], pieces: usize, limits: &Limits)
 /// [`chunks::parse_in_chunks`], and what gives every error its line.
 fn parse_sequentially(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
     let mut reader = Reader::new(limits, None);
-    for (line, text) in Lines::new(bytes) {
-        reader.line(&text, line)?;
-    }
+    reader.read(Lines::new(bytes))?;
     let Reader { mut obj, .. } = reader;
     obj.groups.retain(|g| !g.triangles.is_empty());
     Ok(obj)
 }
 
 impl<'l> Reader<'l> {
+    /// Every line of `lines`. A common statement is read straight from the text (see
+    /// [`Reader::common_statement`]); any other line is cut out, joined at continuations and
+    /// stripped of its comment first.
+    fn read(&mut self, mut lines: Lines<'_>) -> Result<(), ObjError> {
+        loop {
+            if let Some(read) = self.common_statement(lines.rest) {
+                lines.rest = &lines.rest[read..];
+                lines.next_line += 1;
+                continue;
+            }
+            let Some((line, text)) = lines.next() else {
+                return Ok(());
+            };
+            self.line(&text, line)?;
+        }
+    }
+
     fn new(limits: &'l Limits, chunk: Option<Box<chunks::ChunkState>>) -> Self {
         Reader {
             limits,
@@ -773,7 +796,7 @@ impl<'l> Reader<'l> {
     /// bytes (see [`Reader::common_statement`]); anything else goes through [`split`] and
     /// [`Reader::statement`], which read it from the start.
     fn line(&mut self, text: &[u8], line: usize) -> Result<(), ObjError> {
-        if self.common_statement(text) {
+        if self.common_statement(text).is_some() {
             return Ok(());
         }
         match split(text) {
@@ -782,24 +805,26 @@ impl<'l> Reader<'l> {
         }
     }
 
-    /// Reads `text` if it is one of the statements exporters write millions of, in its plain
-    /// form: `v`, `vt` or `vn` with exactly three, two or three numbers, or a triangle whose
-    /// three corners are positive indices in range with the same attributes. Returns whether it
-    /// did. Otherwise it has changed nothing, and the general path reads the line, finding any
-    /// error and warning there; for the lines it reads, this does exactly what that path would.
-    /// (Tokenizing the whole line into a slice of tokens, then each corner again at its
-    /// slashes, was half of reading a million-triangle OBJ.)
-    fn common_statement(&mut self, text: &[u8]) -> bool {
-        let text = text.trim_ascii_start();
+    /// Reads the statement at the start of `text` if it is one of those exporters write
+    /// millions of, in its plain form: `v`, `vt` or `vn` with exactly three, two or three
+    /// numbers, or a triangle whose three corners are positive indices in range with the same
+    /// attributes, alone on its line. Returns how many bytes it read: the line and its line
+    /// feed, if any. Otherwise it has changed nothing, and the general path reads the line,
+    /// finding any error and warning there; for the lines it reads, this does exactly what that
+    /// path would. `text` is one logical line or the rest of the file. (Cutting every line out
+    /// and tokenizing it into a slice of tokens, then each corner again at its slashes, was
+    /// half of reading a million-triangle OBJ.)
+    fn common_statement(&mut self, text: &[u8]) -> Option<usize> {
+        let mut start = text;
+        skip_space(&mut start);
         let max_vertices = self.limits.max_vertices;
-        match text {
-            [b'f', space, rest @ ..] if is_space(*space) => self.common_triangle(rest),
-            [b'v', space, rest @ ..] if is_space(*space) => {
-                let Some(xyz) = exact_numbers::<3>(rest) else {
-                    return false;
-                };
+        let inline_space = |b: &u8| is_space(*b) && *b != b'\n';
+        let after = match start {
+            [b'f', space, rest @ ..] if inline_space(space) => self.common_triangle(rest)?,
+            [b'v', space, rest @ ..] if inline_space(space) => {
+                let (xyz, after) = exact_numbers::<3>(rest)?;
                 if self.obj.positions.len() >= max_vertices {
-                    return false;
+                    return None;
                 }
                 let obj = &mut self.obj;
                 if let Some(colors) = obj.colors.as_mut() {
@@ -807,39 +832,35 @@ impl<'l> Reader<'l> {
                     obj.warnings.vertices_without_color += 1;
                 }
                 obj.positions.push(xyz);
-                obj.statements += 1;
-                true
+                after
             }
-            [b'v', b't', space, rest @ ..] if is_space(*space) => {
-                let Some(uv) = exact_numbers::<2>(rest) else {
-                    return false;
-                };
+            [b'v', b't', space, rest @ ..] if inline_space(space) => {
+                let (uv, after) = exact_numbers::<2>(rest)?;
                 if self.obj.uvs.len() >= max_vertices {
-                    return false;
+                    return None;
                 }
                 self.obj.uvs.push(uv);
-                self.obj.statements += 1;
-                true
+                after
             }
-            [b'v', b'n', space, rest @ ..] if is_space(*space) => {
-                let Some(normal) = exact_numbers::<3>(rest) else {
-                    return false;
-                };
+            [b'v', b'n', space, rest @ ..] if inline_space(space) => {
+                let (normal, after) = exact_numbers::<3>(rest)?;
                 if self.obj.normals.len() >= max_vertices {
-                    return false;
+                    return None;
                 }
                 self.obj.normals.push(normal);
-                self.obj.statements += 1;
-                true
+                after
             }
-            _ => false,
-        }
+            _ => return None,
+        };
+        self.obj.statements += 1;
+        Some(text.len() - after.len())
     }
 
-    /// A triangle for [`Reader::common_statement`]: `rest` is the text after `f`.
-    fn common_triangle(&mut self, mut rest: &[u8]) -> bool {
+    /// A triangle for [`Reader::common_statement`]: `rest` is the text after `f`. Returns the
+    /// text after its line.
+    fn common_triangle<'t>(&mut self, mut rest: &'t [u8]) -> Option<&'t [u8]> {
         if self.limits.max_polygon_corners < 3 || self.triangles >= self.limits.max_triangles {
-            return false;
+            return None;
         }
         let mut corners = [Corner {
             position: 0,
@@ -850,11 +871,9 @@ impl<'l> Reader<'l> {
         let mut indices = [[0u32; 3]; 3];
         let mut shape = None;
         for (corner, index) in corners.iter_mut().zip(&mut indices) {
-            let Some((read, this_shape)) = next_plain_corner(&mut rest) else {
-                return false;
-            };
+            let (read, this_shape) = next_plain_corner(&mut rest)?;
             if shape.is_some_and(|s| s != this_shape) {
-                return false;
+                return None;
             }
             shape = Some(this_shape);
             *index = read;
@@ -864,12 +883,8 @@ impl<'l> Reader<'l> {
                 normal: this_shape.1.then(|| read[2] - 1),
             };
         }
-        if skip_space(&mut rest) {
-            return false;
-        }
-        let Some((has_uv, has_normal)) = shape else {
-            return false;
-        };
+        let after = line_end(rest)?;
+        let (has_uv, has_normal) = shape?;
         let defined = [
             self.obj.positions.len(),
             if has_uv {
@@ -889,7 +904,7 @@ impl<'l> Reader<'l> {
                     .iter()
                     .all(|i| i.iter().zip(defined).all(|(&i, d)| i as usize <= d));
                 if !in_range {
-                    return false;
+                    return None;
                 }
             }
             Some(chunk) => {
@@ -910,8 +925,7 @@ impl<'l> Reader<'l> {
         group.triangles.push(corners);
         group.smoothing.push(smoothing);
         self.triangles += 1;
-        self.obj.statements += 1;
-        true
+        Some(after)
     }
 
     fn statement(&mut self, s: &Statement<'_>, line: usize) -> Result<(), ObjError> {
@@ -2543,6 +2557,92 @@ mod tests {
             format!("{result:?} {:?} {reach:?} {}", reader.obj, reader.triangles)
         };
         [run(false), run(true)]
+    }
+
+    /// The reader without its one-pass reading: every line cut out, joined, stripped of its
+    /// comment and read by the general path.
+    fn parse_generally(bytes: &[u8], limits: &Limits) -> Result<Obj, ObjError> {
+        let mut reader = Reader::new(limits, None);
+        for (line, text) in Lines::new(bytes) {
+            if let Some(statement) = split(&text) {
+                reader.statement(&statement, line)?;
+            }
+        }
+        let Reader { mut obj, .. } = reader;
+        obj.groups.retain(|g| !g.triangles.is_empty());
+        Ok(obj)
+    }
+
+    #[test]
+    fn a_statement_read_from_the_text_ends_at_its_line_feed() {
+        let header = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
+        for tail in [
+            "v 0 0\n1\n",
+            "v 0 0\n\n1\n",
+            "vt 0.5\n1\n",
+            "vn 0 0\n1\nf 1 2 3\n",
+            "f 1 2\n3\n",
+            "f 1/1 2/1\n3/1\n",
+            "v 1 2 3\n\n\nf 1 2 9\n",
+            "v 1 2 3 \r\n \r\nf 1 2 9\n",
+            "f 1 2 3 \\\n4\n",
+            "f 1 2 3 #\\\nf 1 2 9\n",
+            "v 1 2 3\r\rf 1 2 3\n",
+        ] {
+            let text = format!("{header}{tail}");
+            let limits = Limits::default();
+            let read = parse_sequentially(text.as_bytes(), &limits);
+            let general = parse_generally(text.as_bytes(), &limits);
+            assert_eq!(format!("{read:?}"), format!("{general:?}"), "{text:?}");
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2048))]
+
+        /// Whole files, read with statements taken straight from the text where they can be,
+        /// give what reading every line by the general path gives: the same `Obj`, or the same
+        /// error on the same line.
+        #[test]
+        fn a_file_reads_as_the_general_path_reads_it(
+            lines in proptest::collection::vec(
+                (
+                    prop::sample::select(vec!["", "", "", " ", "\t", "\r"]),
+                    prop::sample::select(vec![
+                        "v 0 0 0", "v 1 0 0", "v 0.5 -1.25 3", "v 1e3 2 3", "v 0 1 0 1 0 0",
+                        "vt 0.5 1", "vt 1 1 0", "vt .5 2.", "vn 0 0 1", "vn 0 1 0", "f 1 2 3",
+                        "f 1/1 2/2 3/1", "f 1//1 2//1 3//1", "f 1/1/1 2/1/1 3/1/1",
+                        "f 1 2 3 4", "f 3 2 1", "f 1 2", "f -1 -2 -3", "f 1/1 2 3", "f 9 1 2",
+                        "f 1 2 3x", "s 1", "s off", "usemtl a", "o x", "g g1", "", "#",
+                        "# v 1 2 3", "l 1 2", "vp 1", "v", "f", "v\t1\t2\t3", "v 0 0",
+                        "vt 0.5", "1", "0.5 1", "3/1/1",
+                    ]),
+                    prop::sample::select(vec![
+                        "", "", "", " ", "\t", "\r", " # note", "#x", " \\", "\\", " \r",
+                    ]),
+                    prop::sample::select(vec!["\n", "\n", "\n", "\r\n", "\n\n"]),
+                ),
+                0..24,
+            ),
+            end_with_newline in any::<bool>(),
+        ) {
+            let mut text: String = lines
+                .iter()
+                .map(|(lead, statement, trail, end)| format!("{lead}{statement}{trail}{end}"))
+                .collect();
+            if !end_with_newline {
+                text.truncate(text.trim_end_matches(['\r', '\n']).len());
+            }
+            let limits = Limits {
+                max_vertices: 6,
+                max_triangles: 5,
+                ..Limits::default()
+            };
+            let read = parse_sequentially(text.as_bytes(), &limits);
+            let general = parse_generally(text.as_bytes(), &limits);
+            // Compared as printed, where NaN equals NaN.
+            prop_assert_eq!(format!("{read:?}"), format!("{general:?}"), "{:?}", text);
+        }
     }
 
     proptest! {
