@@ -94,8 +94,15 @@ pub(crate) fn process_stdin(max_bytes: u64, options: &SceneOptions) -> Result<Pr
     let kind = InputKind::sniff(&bytes).ok_or_else(|| {
         Failure::bad_input(FailureCode::UnknownFormat, "not a GLB, glTF or OBJ scene")
     })?;
-    input::process(kind, &bytes, &NoResources, options)
-        .map_err(|e| explain_missing_resource(e.into()))
+    let processed = match kind {
+        // The text goes once read, before the conversion needs as much memory again.
+        InputKind::Obj => input::read_obj(&bytes, options).and_then(|read| {
+            drop(bytes);
+            input::process_read_obj(read, &NoResources, options)
+        }),
+        kind => input::process(kind, &bytes, &NoResources, options),
+    };
+    processed.map_err(|e| explain_missing_resource(e.into()))
 }
 
 /// A missing buffer or MTL file from standard input: say why nothing beside it was looked for.

@@ -98,7 +98,7 @@ pub fn process<'a>(
             }
             gltf::process(main, resources, options)
         }
-        InputKind::Obj => process_obj(main, resources, options),
+        InputKind::Obj => process_read_obj(read_obj(main, options)?, resources, options),
     }
 }
 
@@ -116,18 +116,44 @@ fn obj_error(error: obj::ObjError) -> SceneError {
     }
 }
 
-/// An OBJ: parse it, read its MTL files and the textures they name, convert it to a GLB, and
-/// process that like any glTF; the report then describes the OBJ.
-fn process_obj<'a>(
-    main: &'a [u8],
-    resources: &dyn Resources<'a>,
-    options: &SceneOptions,
-) -> Result<Processed, SceneError> {
+/// An OBJ read from its text by [`read_obj`]: all [`process_read_obj`] needs, without the text.
+pub struct ReadObj {
+    parsed: obj::Obj,
+    /// The text's length, for the report.
+    text_bytes: u64,
+    timings: Timings,
+}
+
+/// Reads an OBJ's text, the first half of [`process`] for an OBJ. Unlike a glTF's output, which
+/// repeats its input's bytes, nothing [`process_read_obj`] makes refers to the text, so a
+/// caller holding it in memory of its own (a request's body) can free it before the second
+/// half, whose conversion needs memory of its size again.
+pub fn read_obj(main: &[u8], options: &SceneOptions) -> Result<ReadObj, SceneError> {
     let mut timings = Timings::start();
     let parsed = parse_obj(main, options)?;
     timings.lap("parse OBJ");
     SceneError::check(&options.cancel)?;
     check_reads_as_obj(&parsed)?;
+    Ok(ReadObj {
+        parsed,
+        text_bytes: main.len() as u64,
+        timings,
+    })
+}
+
+/// The rest of [`process`] for an OBJ [`read_obj`] read: read its MTL files and the textures
+/// they name, convert it to a GLB, and process that like any glTF; the report then describes
+/// the OBJ.
+pub fn process_read_obj<'a>(
+    read: ReadObj,
+    resources: &dyn Resources<'a>,
+    options: &SceneOptions,
+) -> Result<Processed, SceneError> {
+    let ReadObj {
+        parsed,
+        text_bytes,
+        mut timings,
+    } = read;
     let mut supplied = Supplied::default();
     let mtl = read_material_libraries(&parsed, resources, &mut supplied)?;
     supplied.notices.extend(parse_notices(&parsed.warnings));
@@ -157,7 +183,7 @@ fn process_obj<'a>(
     processed.timings.steps = timings.steps;
     let report = &mut processed.report;
     report.input_format = "obj";
-    report.input_bytes = main.len() as u64 + supplied.bytes;
+    report.input_bytes = text_bytes + supplied.bytes;
     // The OBJ's own notices come first, then the glTF path's. The conversion already named
     // the textures that were not supplied (textures_not_supplied); the glTF path would name
     // each again as an image.

@@ -395,6 +395,7 @@ where
 {
     let _cancel_when_dropped = CancelWhenDropped(options.cancel.clone());
     let metrics_app = Arc::clone(app);
+    let mut upload = upload;
     let job = move || {
         let cancelled = || {
             let cancelled = options.cancel.is_cancelled();
@@ -415,7 +416,17 @@ where
                 return Err(Problem::new(ProblemCode::MalformedMultipart, e.to_string()));
             }
         }
-        let processed = match input::process(upload.kind, &upload.main, &parts, &options) {
+        let result = match upload.kind {
+            // An OBJ's text is not needed once read: the body that holds it (a hundred
+            // megabytes for a million-triangle OBJ) is freed before the conversion needs as
+            // much again. Nothing the rest makes refers to it, so `then` gets an empty body.
+            InputKind::Obj => input::read_obj(&upload.main, &options).and_then(|read| {
+                upload.main = Bytes::new();
+                input::process_read_obj(read, &parts, &options)
+            }),
+            kind => input::process(kind, &upload.main, &parts, &options),
+        };
+        let processed = match result {
             Ok(processed) => processed,
             Err(e) => {
                 cancelled();
