@@ -381,7 +381,7 @@ fn convert_to_glb(
         _ => SceneError::new(ProblemCode::ObjNotConvertible, e.to_string()),
     })?;
     supplied.notices.extend(converted.notices);
-    glb::write(converted.json.as_bytes(), Some(&converted.bin), &[])
+    glb::write_around_bin(converted.json.as_bytes(), converted.bin)
         .map_err(|e| SceneError::new(ProblemCode::TooLarge, format!("the converted OBJ {e}")))
 }
 

@@ -124,6 +124,7 @@ use std::collections::hash_map::Entry;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt;
 
+use super::gltf::glb;
 use gltf_json as json;
 use json::accessor::{ComponentType, GenericComponentType, Type};
 use json::buffer::Target;
@@ -1475,7 +1476,8 @@ fn allocate_buffer(total: u64, limits: &ConvertLimits) -> Result<Bin, ConvertErr
     }
     let capacity = usize::try_from(total).map_err(|_| too_large(WHAT, total, usize::MAX as u64))?;
     Ok(Bin {
-        bytes: Vec::with_capacity(capacity),
+        // With room for the rest of the GLB it becomes (see `glb::write_around_bin`).
+        bytes: Vec::with_capacity(capacity.saturating_add(glb::GLB_HEADROOM)),
         views: Vec::new(),
     })
 }

@@ -268,6 +268,37 @@ pub fn write(
     )
 }
 
+/// [`write()`] of a JSON chunk and a BIN chunk, made in the BIN chunk's own memory: the chunk
+/// is moved up within it and the header and JSON written before it, rather than both copied
+/// into a second buffer as large. For a converted OBJ of a million triangles that is 28 MB
+/// less to allocate, touch and hold at once. The move is within the allocation when it has
+/// room for the rest of the file (see [`GLB_HEADROOM`]), else the allocation grows first.
+pub fn write_around_bin(json: &[u8], mut bin: Vec<u8>) -> Result<Vec<u8>, GlbError> {
+    let framing = Framing::of(&[(CHUNK_JSON, json.len()), (CHUNK_BIN, bin.len())])?;
+    let (Some(json_chunk), Some(bin_chunk)) = (framing.chunks.first(), framing.chunks.get(1))
+    else {
+        // Unreachable: the framing has a chunk per length given.
+        return write(json, Some(&bin), &[]);
+    };
+    let json_start = HEADER_LEN + CHUNK_HEADER_LEN;
+    let json_end = json_start + json.len() + json_chunk.padding;
+    let bin_start = json_end + CHUNK_HEADER_LEN;
+    let bin_len = bin.len();
+    bin.resize(framing.total, bin_chunk.pad_byte);
+    bin.copy_within(..bin_len, bin_start);
+    bin[bin_start + bin_len..].fill(bin_chunk.pad_byte);
+    bin[..HEADER_LEN].copy_from_slice(&framing.header);
+    bin[HEADER_LEN..json_start].copy_from_slice(&json_chunk.header);
+    bin[json_start..json_start + json.len()].copy_from_slice(json);
+    bin[json_start + json.len()..json_end].fill(json_chunk.pad_byte);
+    bin[json_end..bin_start].copy_from_slice(&bin_chunk.header);
+    Ok(bin)
+}
+
+/// Room to leave after a BIN chunk that [`write_around_bin`] will frame: the GLB's header, the
+/// two chunk headers and a JSON document of up to 64 KiB, padding included.
+pub const GLB_HEADROOM: usize = HEADER_LEN + 2 * CHUNK_HEADER_LEN + (64 << 10) + 3;
+
 /// [`write()`], with the BIN chunk given as the pieces it is made of, in order: each byte is
 /// copied once, into the file, however the chunk was laid out.
 pub fn write_pieces(
@@ -402,6 +433,24 @@ mod tests {
     fn fixture(name: &str) -> Vec<u8> {
         let path = format!("{}/fixtures/{name}", env!("CARGO_MANIFEST_DIR"));
         std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+    }
+
+    #[test]
+    fn a_glb_made_around_its_bin_chunk_is_the_glb_written_from_copies() {
+        for json_len in 0..9 {
+            for bin_len in [0, 1, 4, 5, 7, 8, 100] {
+                let json: Vec<u8> = (0..json_len).map(|i| b'a' + i as u8).collect();
+                let bin: Vec<u8> = (0..bin_len).map(|i| (i * 7 + 1) as u8).collect();
+                let expected = write(&json, Some(&bin), &[]).unwrap();
+                // With room already there, and with none (the allocation grows).
+                let mut roomy = Vec::with_capacity(bin_len + GLB_HEADROOM);
+                roomy.extend_from_slice(&bin);
+                let made = write_around_bin(&json, roomy).unwrap();
+                assert_eq!(made, expected, "{json_len} {bin_len}");
+                assert_eq!(write_around_bin(&json, bin.clone()).unwrap(), expected);
+                assert!(parse(&made).is_ok());
+            }
+        }
     }
 
     /// A GLB built by hand, so each test can break exactly one thing.
