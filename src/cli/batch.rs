@@ -7,7 +7,7 @@ use super::progress::Progress;
 use super::stdio::{self, is_dash, output_name};
 use super::tally::{self, Tally};
 use super::{AnalyzeArgs, Exit, ProcessArgs, RunArgs, usage_error};
-use crate::scene::error::ProblemCode;
+use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::folder::Folder;
 use crate::scene::input::{self, InputKind};
 use crate::scene::options::Debug;
@@ -23,13 +23,30 @@ pub(super) fn read_and_process(path: &Path, options: &SceneOptions) -> Result<Pr
     if is_dash(path) {
         return stdio::process_stdin(MAX_FILE_BYTES, options);
     }
-    let input = read_input(path)?;
-    Ok(input::process(
-        input.kind,
-        &input.bytes,
-        &input.folder,
-        options,
-    )?)
+    let (processed, _) = process_file(read_input(path)?, options)?;
+    Ok(processed)
+}
+
+/// Processes a scene file; returns with what it made the file's bytes, where they are still
+/// held (a glTF's output in pieces refers to them). An OBJ's are let go once read (see
+/// [`input::read_obj`]): nothing made from the text refers to it, and the mapping's pages
+/// leave the process before the conversion's arrive.
+fn process_file(
+    file: SceneFile,
+    options: &SceneOptions,
+) -> Result<(Processed, Option<FileBytes>), Failure> {
+    let SceneFile {
+        bytes,
+        kind,
+        folder,
+    } = file;
+    if kind == InputKind::Obj {
+        let read = input::read_obj(&bytes, options)?;
+        drop(bytes);
+        return Ok((input::process_read_obj(read, &folder, options)?, None));
+    }
+    let processed = input::process(kind, &bytes, &folder, options)?;
+    Ok((processed, Some(bytes)))
 }
 
 /// A scene file's bytes, what they are, and the folder its other files are read from.
@@ -193,10 +210,17 @@ fn process_one(
         in_pieces: true,
         ..options.clone()
     };
-    let processed = input::process(file.kind, &file.bytes, &file.folder, &options)?;
-    match &processed.pieces {
-        Some(pieces) => write_with(output, |out| pieces.write_to(&file.bytes, out))?,
-        None => write_output(output, processed.bytes.as_deref().unwrap_or_default())?,
+    let (processed, held) = process_file(file, &options)?;
+    match (&processed.pieces, &held) {
+        (Some(pieces), Some(bytes)) => write_with(output, |out| pieces.write_to(bytes, out))?,
+        (Some(_), None) => {
+            return Err(SceneError::new(
+                ProblemCode::Internal,
+                "the written scene refers to an input that was let go",
+            )
+            .into());
+        }
+        (None, _) => write_output(output, processed.bytes.as_deref().unwrap_or_default())?,
     }
     Ok(processed.report)
 }
