@@ -132,7 +132,7 @@ impl ChunkState {
                 .filter(|&i| i > 0)
                 .ok_or(unreadable(line))?;
             let zero_based = u32::try_from(i - 1).map_err(|_| unreadable(line))?;
-            self.reach[kind] = self.reach[kind].max(i - defined[kind] as i64);
+            self.reach_one(kind, i, defined[kind]);
             Ok(zero_based)
         };
         Ok(Corner {
@@ -145,11 +145,16 @@ impl ChunkState {
     /// Records how far a plain triangle's corner reaches (see [`ChunkState::reach`]): its
     /// 1-based indices, where present, against the elements `defined` in the chunk so far.
     pub(super) fn reach_to(&mut self, indices: [Option<u32>; 3], defined: [usize; 3]) {
-        for ((reach, index), defined) in self.reach.iter_mut().zip(indices).zip(defined) {
+        for (kind, (index, defined)) in indices.into_iter().zip(defined).enumerate() {
             if let Some(i) = index {
-                *reach = (*reach).max(i64::from(i) - defined as i64);
+                self.reach_one(kind, i64::from(i), defined);
             }
         }
+    }
+
+    /// Records that a 1-based `index` of one `kind` reaches past the `defined` elements.
+    fn reach_one(&mut self, kind: usize, index: i64, defined: usize) {
+        self.reach[kind] = self.reach[kind].max(index - defined as i64);
     }
 
     #[cfg(test)]

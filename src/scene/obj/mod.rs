@@ -420,12 +420,18 @@ fn exact_numbers<const N: usize>(mut rest: &[u8]) -> Option<([f32; N], &[u8])> {
 #[inline(always)]
 fn skip_space(rest: &mut &[u8]) -> bool {
     while let [b, tail @ ..] = *rest {
-        if !is_space(*b) || *b == b'\n' {
+        if !is_inline_space(*b) {
             return true;
         }
         *rest = tail;
     }
     false
+}
+
+/// [`is_space`] within a line: whitespace other than the line feed that ends it.
+#[inline(always)]
+fn is_inline_space(b: u8) -> bool {
+    is_space(b) && b != b'\n'
 }
 
 /// After a statement's last token: the text after its line, where nothing but whitespace is
@@ -818,10 +824,9 @@ impl<'l> Reader<'l> {
         let mut start = text;
         skip_space(&mut start);
         let max_vertices = self.limits.max_vertices;
-        let inline_space = |b: &u8| is_space(*b) && *b != b'\n';
         let after = match start {
-            [b'f', space, rest @ ..] if inline_space(space) => self.common_triangle(rest)?,
-            [b'v', space, rest @ ..] if inline_space(space) => {
+            [b'f', space, rest @ ..] if is_inline_space(*space) => self.common_triangle(rest)?,
+            [b'v', space, rest @ ..] if is_inline_space(*space) => {
                 let (xyz, after) = exact_numbers::<3>(rest)?;
                 if self.obj.positions.len() >= max_vertices {
                     return None;
@@ -834,7 +839,7 @@ impl<'l> Reader<'l> {
                 obj.positions.push(xyz);
                 after
             }
-            [b'v', b't', space, rest @ ..] if inline_space(space) => {
+            [b'v', b't', space, rest @ ..] if is_inline_space(*space) => {
                 let (uv, after) = exact_numbers::<2>(rest)?;
                 if self.obj.uvs.len() >= max_vertices {
                     return None;
@@ -842,7 +847,7 @@ impl<'l> Reader<'l> {
                 self.obj.uvs.push(uv);
                 after
             }
-            [b'v', b'n', space, rest @ ..] if inline_space(space) => {
+            [b'v', b'n', space, rest @ ..] if is_inline_space(*space) => {
                 let (normal, after) = exact_numbers::<3>(rest)?;
                 if self.obj.normals.len() >= max_vertices {
                     return None;
