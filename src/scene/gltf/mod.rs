@@ -976,10 +976,10 @@ fn report_storage(
     report.summary.mesh_bytes_out = after.as_ref().map(|a| a.total);
     for entry in &mut report.primitives {
         let key = (entry.mesh, entry.primitive);
-        let Some(input) = before.primitives.get(&key) else {
+        let Some(input) = before.primitive(key) else {
             continue;
         };
-        let output = after.as_ref().and_then(|a| a.primitives.get(&key));
+        let output = after.as_ref().and_then(|a| a.primitive(key));
         entry.storage = Some(StorageReport {
             compression_in: input.compression.name(),
             compression_out: output.map(|o| o.compression.name()),
@@ -1104,6 +1104,10 @@ impl Edits {
                 key == "TANGENT" || (painting && key == "COLOR_0")
             })?;
         }
+        // The members still to come, TANGENT first: room for them once, where growing and
+        // then fitting the list took two allocations for every primitive.
+        let added = 1 + usize::from(c.tangents.normals.is_some()) + usize::from(painting);
+        edit.attributes.reserve_exact(added);
         edit.attributes.push(("TANGENT".into(), tangent));
         self.add_vertex_order(&mut edit, job, c, keeps, topology);
         let targets = primitive

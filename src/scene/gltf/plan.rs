@@ -167,28 +167,28 @@ fn material_use(material: Option<&Node>) -> MaterialUse {
         return out;
     };
     let extension = |name: &str| material.get("extensions").and_then(|e| e.get(name));
-    let mut candidates: Vec<(&'static str, Option<&Node>)> = Vec::new();
-    if let Some(info) = material.get("normalTexture") {
-        candidates.push(("normalTexture", Some(info)));
-    }
-    if let Some(clearcoat) = extension("KHR_materials_clearcoat")
-        && let Some(info) = clearcoat.get("clearcoatNormalTexture")
-    {
-        candidates.push(("KHR_materials_clearcoat.clearcoatNormalTexture", Some(info)));
-    }
-    if let Some(anisotropy) = extension("KHR_materials_anisotropy") {
-        candidates.push((
+    // At most three, looked at once per primitive: no list is allocated for them (a scene may
+    // have a hundred thousand primitives).
+    let normal = material
+        .get("normalTexture")
+        .map(|info| ("normalTexture", Some(info)));
+    let clearcoat = extension("KHR_materials_clearcoat")
+        .and_then(|clearcoat| clearcoat.get("clearcoatNormalTexture"))
+        .map(|info| ("KHR_materials_clearcoat.clearcoatNormalTexture", Some(info)));
+    let anisotropy = extension("KHR_materials_anisotropy").map(|anisotropy| {
+        (
             "KHR_materials_anisotropy",
             anisotropy.get("anisotropyTexture"),
-        ));
-    }
+        )
+    });
+    let mut candidates = [normal, clearcoat, anisotropy].into_iter().flatten();
     // The normal map decides the set when there is one; the others follow it.
-    let Some(&(first, first_info)) = candidates.first() else {
+    let Some((first, first_info)) = candidates.next() else {
         return out;
     };
     out.uses = Some(first);
     out.set = first_info.map_or(0, texture_set);
-    for (name, info) in &candidates[1..] {
+    for (name, info) in candidates {
         if let Some(info) = info {
             let set = texture_set(info);
             if set != out.set {
@@ -234,6 +234,22 @@ fn array<'a>(node: &'a Node, name: &str) -> &'a [Node] {
 
 fn attribute(primitive: &Node, name: &str) -> Option<usize> {
     accessor_index(primitive.get("attributes").and_then(|a| a.get(name)))
+}
+
+/// The accessor of `TEXCOORD_<set>`, its name spelled on the stack rather than allocated once
+/// per primitive.
+fn texcoord_attribute(primitive: &Node, set: u32) -> Option<usize> {
+    use std::io::Write;
+    let mut name = [0u8; "TEXCOORD_4294967295".len()];
+    let left = {
+        let mut free = &mut name[..];
+        // Always fits: the buffer is as long as the longest name.
+        write!(free, "TEXCOORD_{set}").ok()?;
+        free.len()
+    };
+    let len = name.len() - left;
+    let name = std::str::from_utf8(name.get(..len)?).ok()?;
+    attribute(primitive, name)
 }
 
 fn topology(mode: u64) -> Option<Topology> {
@@ -361,7 +377,7 @@ fn plan_primitive(
         mode,
         topology: topology(mode),
         position: attribute(primitive, "POSITION"),
-        texcoord: attribute(primitive, &format!("TEXCOORD_{}", usage.set)),
+        texcoord: texcoord_attribute(primitive, usage.set),
         material,
         had_tangents: attribute(primitive, "TANGENT").is_some(),
     };
@@ -435,6 +451,19 @@ mod tests {
                 {"mappings": [{"material": 0, "variants": [0]}, {"material": 2, "variants": [1]}]}}}
         ]}]
     }"#;
+
+    #[test]
+    fn a_texcoord_set_is_found_by_its_whole_name() {
+        let doc = Document::parse(
+            br#"{"attributes": {"TEXCOORD_01": 0, "TEXCOORD_1": 1, "TEXCOORD_4294967295": 2}}"#,
+        )
+        .unwrap();
+        let primitive = doc.root();
+        assert_eq!(texcoord_attribute(primitive, 1), Some(1));
+        assert_eq!(texcoord_attribute(primitive, u32::MAX), Some(2));
+        assert_eq!(texcoord_attribute(primitive, 0), None);
+        assert_eq!(texcoord_attribute(primitive, 10), None);
+    }
 
     #[test]
     fn decisions_follow_the_material() {

@@ -7,7 +7,6 @@
 //! view once, however many primitives share it. Images, animations and skins are not mesh bytes.
 
 use super::draco;
-use std::collections::BTreeMap;
 use tspace_json::{Node, Text};
 
 /// How a primitive's geometry is stored.
@@ -38,22 +37,45 @@ pub struct PrimitiveSize {
 /// A document's mesh storage.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct MeshSizes {
-    /// By `(mesh, primitive)`.
-    pub primitives: BTreeMap<(usize, usize), PrimitiveSize>,
+    /// Every primitive's, mesh by mesh in order: one flat list, since it is kept while the
+    /// scene is written and a scene may have a hundred thousand primitives (a map took three
+    /// times the room).
+    primitives: Vec<PrimitiveSize>,
+    /// Where each mesh's primitives start in `primitives`, and one past the last.
+    mesh_starts: Vec<usize>,
     pub total: u64,
+}
+
+impl MeshSizes {
+    /// Primitive `primitive` of mesh `mesh`.
+    pub fn primitive(&self, (mesh, primitive): (usize, usize)) -> Option<&PrimitiveSize> {
+        let start = *self.mesh_starts.get(mesh)?;
+        let end = *self.mesh_starts.get(mesh + 1)?;
+        self.primitives.get(start..end)?.get(primitive)
+    }
 }
 
 /// Measures the mesh storage a document declares (lengths from the JSON; no bytes are read).
 pub fn measure(root: &Node) -> MeshSizes {
     let views = array(root.get("bufferViews"));
     let accessors = array(root.get("accessors"));
-    let mut sizes = MeshSizes::default();
+    let meshes = array(root.get("meshes"));
+    let count = meshes
+        .iter()
+        .map(|mesh| array(mesh.get("primitives")).len())
+        .sum();
+    let mut sizes = MeshSizes {
+        primitives: Vec::with_capacity(count),
+        mesh_starts: Vec::with_capacity(meshes.len() + 1),
+        total: 0,
+    };
     // Per view: whether some primitive reads it. A scene of 50,000 primitives measured each
     // one's views in sets and maps; flat lists do the same without the allocations.
     let mut read = vec![false; views.len()];
     let mut used = Vec::new();
-    for (m, mesh) in array(root.get("meshes")).iter().enumerate() {
-        for (p, primitive) in array(mesh.get("primitives")).iter().enumerate() {
+    for mesh in meshes {
+        sizes.mesh_starts.push(sizes.primitives.len());
+        for primitive in array(mesh.get("primitives")) {
             primitive_views(accessors, primitive, &mut used);
             let meshopt = used.iter().any(|&v| meshopt_length(views.get(v)).is_some());
             let compression = if draco::extension(primitive).is_some() {
@@ -64,9 +86,7 @@ pub fn measure(root: &Node) -> MeshSizes {
                 Compression::None
             };
             let bytes = used.iter().map(|&v| view_bytes(views.get(v))).sum();
-            sizes
-                .primitives
-                .insert((m, p), PrimitiveSize { compression, bytes });
+            sizes.primitives.push(PrimitiveSize { compression, bytes });
             for &v in &used {
                 if let Some(read) = read.get_mut(v) {
                     *read = true;
@@ -74,6 +94,7 @@ pub fn measure(root: &Node) -> MeshSizes {
             }
         }
     }
+    sizes.mesh_starts.push(sizes.primitives.len());
     sizes.total = (views.iter().zip(&read))
         .filter(|&(_, &read)| read)
         .map(|(view, _)| view_bytes(Some(view)))
@@ -206,7 +227,7 @@ mod tests {
         }"#;
         let doc = Document::parse(text).unwrap();
         let sizes = measure(doc.root());
-        let at = |p| sizes.primitives[&(0, p)];
+        let at = |p| *sizes.primitive((0, p)).unwrap();
         assert_eq!((at(0).compression, at(0).bytes), (Compression::None, 100));
         assert_eq!(
             (at(1).compression, at(1).bytes),
@@ -214,6 +235,8 @@ mod tests {
         );
         assert_eq!((at(2).compression, at(2).bytes), (Compression::Draco, 7));
         assert_eq!((at(3).compression, at(3).bytes), (Compression::None, 106));
+        assert_eq!(sizes.primitive((0, 4)), None);
+        assert_eq!(sizes.primitive((1, 0)), None);
         // View 3 is no mesh's.
         assert_eq!(sizes.total, 153);
         // Read with only the members it needs, the document measures the same.
@@ -228,5 +251,29 @@ mod tests {
                 .get("name")
                 .is_none()
         );
+    }
+
+    #[test]
+    fn each_mesh_finds_its_own_primitives() {
+        let text = br#"{
+            "bufferViews": [{"byteLength": 10}, {"byteLength": 20}, {"byteLength": 40}],
+            "accessors": [{"bufferView": 0}, {"bufferView": 1}, {"bufferView": 2}],
+            "meshes": [
+                {"primitives": [{"attributes": {"POSITION": 0}}]},
+                {"primitives": []},
+                {"primitives": [{"attributes": {"POSITION": 1}}, {"attributes": {"POSITION": 2}}]}
+            ]
+        }"#;
+        let doc = Document::parse(text).unwrap();
+        let sizes = measure(doc.root());
+        let bytes = |key| sizes.primitive(key).map(|p| p.bytes);
+        assert_eq!(bytes((0, 0)), Some(10));
+        assert_eq!(bytes((0, 1)), None);
+        assert_eq!(bytes((1, 0)), None);
+        assert_eq!(bytes((2, 0)), Some(20));
+        assert_eq!(bytes((2, 1)), Some(40));
+        assert_eq!(bytes((2, 2)), None);
+        assert_eq!(bytes((3, 0)), None);
+        assert_eq!(sizes.total, 70);
     }
 }
