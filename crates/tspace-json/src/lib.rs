@@ -1231,6 +1231,12 @@ fn check_unique_keys(keys: &mut [(&str, usize)]) -> Result<(), Fail> {
 /// `s` as a JSON string literal, quotes included.
 pub fn escape_str(s: &str) -> String {
     let mut out = String::with_capacity(s.len() + 2);
+    push_escaped(&mut out, s);
+    out
+}
+
+/// Appends `s` to `out` as a JSON string literal, quotes included.
+fn push_escaped(out: &mut String, s: &str) {
     out.push('"');
     for c in s.chars() {
         match c {
@@ -1244,7 +1250,6 @@ pub fn escape_str(s: &str) -> String {
         }
     }
     out.push('"');
-    out
 }
 
 /// `v` as a JSON number that reads back as exactly `v` (shortest round-trip digits), or `None`
@@ -1352,19 +1357,16 @@ pub struct Editor<'d, 'a> {
     doc: &'d Document<'a>,
     replacements: Vec<(Range<usize>, String)>,
     /// Keyed by the container's start offset, which is unique among containers.
-    objects: BTreeMap<usize, ObjectEdit>,
+    objects: BTreeMap<usize, ObjectEdit<'d>>,
     arrays: BTreeMap<usize, ArrayEdit>,
 }
 
-/// One object's edits. The members' keys are not copied: every edit names the object's node,
-/// whose members have them.
+/// One object's edits. Nothing of the object is copied: where its members' keys lie is read
+/// from its node when the edits are rendered (a scene may edit a hundred thousand objects, each
+/// to add one member).
 #[derive(Debug)]
-struct ObjectEdit {
-    open: usize,
-    /// Per original member: where its key starts and its value ends (what a removal cuts).
-    members: Box<[(u32, u32)]>,
-    /// The last original member's key end and value start: its colon, which added members copy.
-    last_colon: (u32, u32),
+struct ObjectEdit<'d> {
+    object: &'d Node,
     /// Per original member, whether it is removed; empty while none is.
     removed: Vec<bool>,
     added: Vec<(Text, NewValue)>,
@@ -1441,13 +1443,13 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// Adds member `key` at the end of `object`. Fails if the key is already there.
     pub fn insert_member(
         &mut self,
-        object: &Node,
+        object: &'d Node,
         key: &str,
         text: impl Into<String>,
     ) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
-        if edit.has_key(object, key) {
+        if edit.has_key(key) {
             return Err(EditError::MemberExists { key: key.into() });
         }
         edit.add(key, NewValue::Text(text.into()));
@@ -1457,7 +1459,7 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// Replaces member `key`'s value, or adds the member if the object lacks it.
     pub fn set_member(
         &mut self,
-        object: &Node,
+        object: &'d Node,
         key: &str,
         text: impl Into<String>,
     ) -> Result<(), EditError> {
@@ -1480,7 +1482,7 @@ impl<'d, 'a> Editor<'d, 'a> {
     }
 
     /// Removes member `key` (with its comma) from `object`. Returns whether it was there.
-    pub fn remove_member(&mut self, object: &Node, key: &str) -> Result<bool, EditError> {
+    pub fn remove_member(&mut self, object: &'d Node, key: &str) -> Result<bool, EditError> {
         let edit = self.object_edit(object)?;
         if let Some(i) = edit.added.iter().position(|(k, _)| k == key) {
             edit.added.remove(i);
@@ -1545,7 +1547,7 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// element's index. This is how a glTF document gains `accessors` or `bufferViews`.
     pub fn push_to_array_member(
         &mut self,
-        object: &Node,
+        object: &'d Node,
         key: &str,
         text: impl Into<String>,
     ) -> Result<usize, EditError> {
@@ -1591,7 +1593,7 @@ impl<'d, 'a> Editor<'d, 'a> {
         Ok(())
     }
 
-    fn object_edit(&mut self, object: &Node) -> Result<&mut ObjectEdit, EditError> {
+    fn object_edit(&mut self, object: &'d Node) -> Result<&mut ObjectEdit<'d>, EditError> {
         let Some(members) = object.as_object() else {
             return Err(EditError::NotAnObject {
                 span: object.span(),
@@ -1600,20 +1602,15 @@ impl<'d, 'a> Editor<'d, 'a> {
         self.check_span(&object.span())?;
         let open = object.span().start;
         if !self.objects.contains_key(&open) {
-            let mut spans = Vec::with_capacity(members.len());
-            let mut last_colon = (0, 0);
+            // A node of another document is refused here, where the edit is made, rather than
+            // when the edits are rendered.
             for m in members {
-                let key = self.doc.key_span(m).ok_or(EditError::ForeignNode {
+                self.doc.key_span(m).ok_or(EditError::ForeignNode {
                     span: m.value.span(),
                 })?;
-                // Offsets within the document, which `parse` kept to 32 bits.
-                spans.push((key.start as u32, m.value.end));
-                last_colon = (key.end as u32, m.value.start);
             }
             let edit = ObjectEdit {
-                open,
-                members: spans.into_boxed_slice(),
-                last_colon,
+                object,
                 removed: Vec::new(),
                 added: Vec::new(),
             };
@@ -1676,7 +1673,7 @@ impl<'d, 'a> Editor<'d, 'a> {
     {
         let source = self.doc.source;
         for edit in self.objects.values() {
-            edit.pieces(source, &mut pieces)?;
+            edit.pieces(self.doc, &mut pieces)?;
         }
         // Stable: insertions at one offset keep the order in which they were made, and an
         // insertion at the start of a replaced span goes before it.
@@ -1825,11 +1822,11 @@ fn removal_pieces(
     Ok(())
 }
 
-impl ObjectEdit {
-    /// Whether the edited object has member `key`: an original one not removed (`object` is
-    /// the edited node), or an added one.
-    fn has_key(&self, object: &Node, key: &str) -> bool {
-        let members = object.as_object().unwrap_or(&[]);
+impl ObjectEdit<'_> {
+    /// Whether the edited object has member `key`: an original one not removed, or an added
+    /// one.
+    fn has_key(&self, key: &str) -> bool {
+        let members = self.object.as_object().unwrap_or(&[]);
         let original = members
             .iter()
             .enumerate()
@@ -1845,12 +1842,18 @@ impl ObjectEdit {
 
     fn pieces(
         &self,
-        source: &str,
+        doc: &Document<'_>,
         out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
     ) -> Result<(), EditError> {
-        let n = self.members.len();
-        let start = |i: usize| self.members.get(i).map_or(0, |m| m.0 as usize);
-        let end = |i: usize| self.members.get(i).map_or(0, |m| m.1 as usize);
+        let source = doc.source;
+        let members = self.object.as_object().unwrap_or(&[]);
+        let n = members.len();
+        let open = self.object.span().start;
+        // Where member `i`'s key starts (what a removal cuts from), and where its value ends;
+        // `object_edit` checked that every key is found.
+        let key_span = |i: usize| members.get(i).and_then(|m| doc.key_span(m));
+        let start = |i: usize| key_span(i).map_or(0, |key| key.start);
+        let end = |i: usize| members.get(i).map_or(0, |m| m.value.span().end);
         let removed = |i: usize| is_removed(&self.removed, i);
 
         removal_pieces(n, removed, start, end, source, out)?;
@@ -1860,27 +1863,40 @@ impl ObjectEdit {
         }
         // New members copy the layout of the last existing ones: the whitespace before a key,
         // and the spelling of the colon.
-        let (key_end, value_start) = (self.last_colon.0 as usize, self.last_colon.1 as usize);
-        let (at, lead, colon) = match n {
-            0 => (self.open + 1, "", ":"),
-            _ => {
+        let (at, lead, colon) = match members.last() {
+            None => (open + 1, "", ":"),
+            Some(last) => {
                 let lead = if n >= 2 {
                     lead_after_comma(slice(source, end(n - 2)..start(n - 1))?)
                 } else {
-                    slice(source, self.open + 1..start(n - 1))?
+                    slice(source, open + 1..start(n - 1))?
                 };
-                (end(n - 1), lead, slice(source, key_end..value_start)?)
+                let key_end = key_span(n - 1).map_or(0, |key| key.end);
+                let colon = slice(source, key_end..last.value.span().start)?;
+                (end(n - 1), lead, colon)
             }
         };
         let mut comma = (0..n).any(|i| !removed(i));
-        let mut text = String::new();
+        // One allocation for the members' text, of its length.
+        let len: usize = self
+            .added
+            .iter()
+            .map(|(key, value)| {
+                let value = match value {
+                    NewValue::Text(t) => t.len(),
+                    NewValue::Array { items, .. } => items.len() + 2,
+                };
+                1 + lead.len() + key.len() + 2 + colon.len() + value
+            })
+            .sum();
+        let mut text = String::with_capacity(len);
         for (key, value) in &self.added {
             if comma {
                 text.push(',');
                 text.push_str(lead);
             }
             comma = true;
-            text.push_str(&escape_str(key));
+            push_escaped(&mut text, key);
             text.push_str(colon);
             match value {
                 NewValue::Text(t) => text.push_str(t),
@@ -1958,7 +1974,10 @@ mod tests {
         }
     }
 
-    fn edited(s: &str, f: impl FnOnce(&Document<'_>, &mut Editor<'_, '_>)) -> String {
+    fn edited(
+        s: &str,
+        f: impl for<'d, 'a> FnOnce(&'d Document<'a>, &mut Editor<'d, 'a>),
+    ) -> String {
         let doc = parse(s).unwrap();
         let mut ed = doc.editor();
         f(&doc, &mut ed);

@@ -1219,9 +1219,9 @@ fn copy_whole_buffers<'s>(
         .collect()
 }
 
-fn drop_accessors(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn drop_accessors<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     numbering: &Numbering,
 ) -> Result<(), SceneError> {
     if let Some(list) = root.get("accessors") {
@@ -1259,9 +1259,9 @@ fn renumber_view_refs(
     Ok(())
 }
 
-fn append_accessors(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn append_accessors<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     numbering: &Numbering,
     changes: &Changes,
 ) -> Result<(), SceneError> {
@@ -1282,9 +1282,9 @@ fn append_accessors(
 }
 
 /// Drops the orphan views and points the kept ones at their place in the output buffer.
-fn edit_buffer_views(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn edit_buffer_views<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     buffers: &BufferMap<'_>,
     numbering: &Numbering,
     layout: &Layout<'_>,
@@ -1332,9 +1332,9 @@ fn edit_buffer_views(
 }
 
 /// The changes' views, then the embedded images', all in output buffer 0.
-fn append_buffer_views(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn append_buffer_views<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     changes: &Changes,
     images: &Images,
     layout: &Layout<'_>,
@@ -1390,9 +1390,9 @@ fn renumber_accessor_refs(
 }
 
 /// Appends the new materials; returns the index the first one gets.
-fn append_materials(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn append_materials<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     changes: &Changes,
 ) -> Result<usize, SceneError> {
     let first = root
@@ -1410,9 +1410,9 @@ fn append_materials(
 /// Lists the extensions the new materials use in `extensionsUsed`. Runs after every other
 /// edit of the list: a list that loses its last name (Draco's) is removed as a member, and the
 /// editor then starts a new one.
-fn list_material_extensions(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn list_material_extensions<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     changes: &Changes,
 ) -> Result<(), SceneError> {
     let listed = root
@@ -1431,9 +1431,9 @@ fn list_material_extensions(
 
 /// Applies every primitive's edit; when no primitive keeps Draco data, the extension leaves
 /// `extensionsUsed` too.
-fn edit_primitives(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn edit_primitives<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     numbering: &Numbering,
     changes: &Changes,
     first_new_material: usize,
@@ -1476,9 +1476,9 @@ fn edit_primitives(
     Ok(())
 }
 
-fn unlist_draco(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn unlist_draco<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     warnings: &mut Vec<Notice>,
 ) -> Result<(), SceneError> {
     let mut listed = false;
@@ -1493,9 +1493,9 @@ fn unlist_draco(
 
 /// Removes `name` from the array member `list` of the root, and the member with its last name
 /// (an empty list is invalid). Returns whether the name was there.
-fn unlist_extension(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn unlist_extension<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     list: &str,
     name: &str,
 ) -> Result<bool, SceneError> {
@@ -1515,9 +1515,9 @@ fn unlist_extension(
 }
 
 /// Embedded images lose their URI and name their view (`first_view`: the first image view).
-fn point_images_at_views(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn point_images_at_views<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     images: &Images,
     first_view: usize,
 ) -> Result<(), SceneError> {
@@ -1540,9 +1540,9 @@ fn point_images_at_views(
 
 /// The buffers array: the merged buffer first, then the empty ones. The usual file, one buffer
 /// with data, is edited in place, keeping its layout.
-fn edit_buffers(
-    editor: &mut Editor<'_, '_>,
-    doc: &Document<'_>,
+fn edit_buffers<'d>(
+    editor: &mut Editor<'d, '_>,
+    doc: &'d Document<'_>,
     buffers: &BufferMap<'_>,
     layout: &Layout<'_>,
     (changes, images): (&Changes, &Images),
@@ -1624,9 +1624,9 @@ fn merged_entry(
 
 /// Sets a buffer's length and URI for the output buffer: no URI in a GLB (it is the BIN chunk),
 /// a `data:` URI in a `.gltf`.
-fn point_buffer_at_bin(
-    editor: &mut Editor<'_, '_>,
-    buffer: &Node,
+fn point_buffer_at_bin<'d>(
+    editor: &mut Editor<'d, '_>,
+    buffer: &'d Node,
     byte_length: usize,
     bin_uri: Option<&str>,
 ) -> Result<(), SceneError> {
@@ -1839,16 +1839,16 @@ fn visit_final_primitive_accessors(root: &Node, changes: &Changes, mut visit: im
 
 /// Sets the members the edit names and, when accessors were dropped, renumbers the ones it
 /// leaves alone.
-fn apply_primitive_edit(
-    editor: &mut Editor<'_, '_>,
-    primitive: &Node,
+fn apply_primitive_edit<'d>(
+    editor: &mut Editor<'d, '_>,
+    primitive: &'d Node,
     edit: &PrimitiveEdit,
     numbering: &Numbering,
 ) -> Result<(), SceneError> {
     let dropping = numbering.dropping;
     let final_accessor = |r: Ref| numbering.accessor(r);
-    let set_all = |editor: &mut Editor<'_, '_>,
-                   object: &Node,
+    let set_all = |editor: &mut Editor<'d, '_>,
+                   object: &'d Node,
                    set: &[(Text, Ref)]|
      -> Result<(), SceneError> {
         for (key, r) in set {
@@ -2394,16 +2394,16 @@ fn compressed_view_json(
 }
 
 /// Drops the orphan views and points each kept one at its place in the packed layout.
-fn edit_buffer_views_packed(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn edit_buffer_views_packed<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     numbering: &Numbering,
     packed: &Packed,
 ) -> Result<(), SceneError> {
     let Some(list) = root.get("bufferViews") else {
         return Ok(());
     };
-    let set_if = |editor: &mut Editor<'_, '_>, node: &Node, key: &str, value: usize| {
+    let set_if = |editor: &mut Editor<'d, '_>, node: &'d Node, key: &str, value: usize| {
         if node.get(key).is_none_or(|n| usize_of(Some(n)) != value) {
             editor
                 .set_member(node, key, value.to_string())
@@ -2476,9 +2476,9 @@ fn edit_buffer_views_packed(
 
 /// The buffers of a packed write: the data buffer, then the fallback buffer when any view is
 /// compressed (the input's own fallback entry, resized, or a new one).
-fn edit_buffers_packed(
-    editor: &mut Editor<'_, '_>,
-    doc: &Document<'_>,
+fn edit_buffers_packed<'d>(
+    editor: &mut Editor<'d, '_>,
+    doc: &'d Document<'_>,
     buffers: &BufferMap<'_>,
     layout: &Layout<'_>,
     (changes, images): (&Changes, &Images),
@@ -2548,9 +2548,9 @@ fn fallback_buffer(
 /// `extensionsUsed` and `extensionsRequired` after a packed write: `EXT_meshopt_compression`
 /// in both when any view has it (the output holds no uncompressed copy), out of both when none
 /// has; `KHR_meshopt_compression` leaves with its last view.
-fn list_meshopt(
-    editor: &mut Editor<'_, '_>,
-    root: &Node,
+fn list_meshopt<'d>(
+    editor: &mut Editor<'d, '_>,
+    root: &'d Node,
     packed: &Packed,
 ) -> Result<(), SceneError> {
     for name in [compress::EXT, compress::KHR] {
