@@ -64,9 +64,26 @@ fn index(node: Option<&Node>) -> Option<(&Node, usize)> {
     Some((node, i))
 }
 
+/// A reference: its owner, the number's node, and the index it holds.
+pub type Ref<'d> = (Owner, &'d Node, usize);
+
+/// The references `visit` reports, in a list of exactly their number: a scene of many small
+/// primitives has several each, and a list grown by doubling held up to twice the room, at
+/// the writer's peak.
+fn counted<'d>(visit: impl Fn(&mut dyn FnMut(Ref<'d>))) -> Vec<Ref<'d>> {
+    let mut count = 0;
+    visit(&mut |_| count += 1);
+    let mut out = Vec::with_capacity(count);
+    visit(&mut |r| out.push(r));
+    out
+}
+
 /// Every accessor reference: `(owner, the number's node, the accessor index)`.
-pub fn accessor_refs(root: &Node) -> Vec<(Owner, &Node, usize)> {
-    let mut out = Vec::new();
+pub fn accessor_refs(root: &Node) -> Vec<Ref<'_>> {
+    counted(|out| visit_accessor_refs(root, out))
+}
+
+fn visit_accessor_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (m, mesh) in items(root.get("meshes")).iter().enumerate() {
         for (p, primitive) in items(mesh.get("primitives")).iter().enumerate() {
             let owner = Owner::Primitive(m, p);
@@ -80,21 +97,21 @@ pub fn accessor_refs(root: &Node) -> Vec<(Owner, &Node, usize)> {
                 );
             for node in nodes {
                 if let Some((n, i)) = index(node) {
-                    out.push((owner, n, i));
+                    out((owner, n, i));
                 }
             }
         }
     }
     for skin in items(root.get("skins")) {
         if let Some((n, i)) = index(skin.get("inverseBindMatrices")) {
-            out.push((Owner::Other, n, i));
+            out((Owner::Other, n, i));
         }
     }
     for animation in items(root.get("animations")) {
         for sampler in items(animation.get("samplers")) {
             for key in ["input", "output"] {
                 if let Some((n, i)) = index(sampler.get(key)) {
-                    out.push((Owner::Other, n, i));
+                    out((Owner::Other, n, i));
                 }
             }
         }
@@ -106,32 +123,34 @@ pub fn accessor_refs(root: &Node) -> Vec<(Owner, &Node, usize)> {
             .and_then(|e| e.get("attributes"));
         for v in values(instancing) {
             if let Some((n, i)) = index(Some(v)) {
-                out.push((Owner::Other, n, i));
+                out((Owner::Other, n, i));
             }
         }
     }
-    out
 }
 
 /// Every buffer-view reference: `(owner, the number's node, the view index)`.
-pub fn view_refs(root: &Node) -> Vec<(Owner, &Node, usize)> {
-    let mut out = Vec::new();
+pub fn view_refs(root: &Node) -> Vec<Ref<'_>> {
+    counted(|out| visit_view_refs(root, out))
+}
+
+fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (a, accessor) in items(root.get("accessors")).iter().enumerate() {
         let owner = Owner::Accessor(a);
         if let Some((n, i)) = index(accessor.get("bufferView")) {
-            out.push((owner, n, i));
+            out((owner, n, i));
         }
         if let Some(sparse) = accessor.get("sparse") {
             for part in ["indices", "values"] {
                 if let Some((n, i)) = index(sparse.get(part).and_then(|p| p.get("bufferView"))) {
-                    out.push((owner, n, i));
+                    out((owner, n, i));
                 }
             }
         }
     }
     for (i, image) in items(root.get("images")).iter().enumerate() {
         if let Some((n, v)) = index(image.get("bufferView")) {
-            out.push((Owner::Image(i), n, v));
+            out((Owner::Image(i), n, v));
         }
     }
     for (m, mesh) in items(root.get("meshes")).iter().enumerate() {
@@ -140,11 +159,10 @@ pub fn view_refs(root: &Node) -> Vec<(Owner, &Node, usize)> {
                 .get("extensions")
                 .and_then(|e| e.get("KHR_draco_mesh_compression"));
             if let Some((n, v)) = index(draco.and_then(|d| d.get("bufferView"))) {
-                out.push((Owner::Primitive(m, p), n, v));
+                out((Owner::Primitive(m, p), n, v));
             }
         }
     }
-    out
 }
 
 /// The extensions a document declares that are not in [`KNOWN_EXTENSIONS`].
@@ -178,7 +196,9 @@ mod tests {
         }"#,
         )
         .unwrap();
-        let accessors: Vec<usize> = accessor_refs(doc.root()).iter().map(|r| r.2).collect();
+        let found = accessor_refs(doc.root());
+        assert_eq!(found.capacity(), found.len());
+        let accessors: Vec<usize> = found.iter().map(|r| r.2).collect();
         assert_eq!(accessors, vec![0, 1, 2, 3, 5, 6, 7, 8]);
         let views: Vec<(Owner, usize)> = view_refs(doc.root()).iter().map(|r| (r.0, r.2)).collect();
         assert_eq!(
