@@ -1967,6 +1967,58 @@ mod tests {
         Document::parse(s.as_bytes())
     }
 
+    #[test]
+    fn members_are_found_by_keys_short_and_long() {
+        let keys = [
+            "",
+            "a",
+            "POSITION",
+            "thirteen-char",
+            "fourteen-chars",
+            "fifteen-chars!!",
+            "KHR_materials_clearcoat",
+            "tab\\there",
+            "\\u00e9t\\u00e9",
+        ];
+        let text = format!(
+            "{{{}}}",
+            keys.iter()
+                .enumerate()
+                .map(|(i, k)| format!("\"{k}\": {i}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let doc = parse(&text).unwrap();
+        let root = doc.root();
+        let decoded = [
+            "",
+            "a",
+            "POSITION",
+            "thirteen-char",
+            "fourteen-chars",
+            "fifteen-chars!!",
+            "KHR_materials_clearcoat",
+            "tab\there",
+            "\u{e9}t\u{e9}",
+        ];
+        for (i, key) in decoded.iter().enumerate() {
+            assert_eq!(
+                root.get(key).and_then(Node::as_u64),
+                Some(i as u64),
+                "{key:?}"
+            );
+        }
+        for absent in [
+            "b",
+            "POSITIO",
+            "POSITION_",
+            "fourteen-charz",
+            "fifteen-chars!?",
+        ] {
+            assert!(root.get(absent).is_none(), "{absent:?}");
+        }
+    }
+
     fn kind_of(s: &str) -> ParseErrorKind {
         match parse(s) {
             Ok(_) => panic!("{s:?} parsed"),
