@@ -399,7 +399,7 @@ impl CornerWeld {
 /// ones plus one, in 33 bits), so that looking it up hashes one value instead of five fields.
 fn corner_key(corner: &Corner) -> u128 {
     let present = |index: Option<u32>| index.map_or(0, |i| u128::from(i) + 1);
-    u128::from(corner.position) | present(corner.uv) << 32 | present(corner.normal) << 65
+    u128::from(corner.position) | present(corner.uv()) << 32 | present(corner.normal()) << 65
 }
 
 /// The hash of the corner maps: one folded 128-bit multiplication of the key with a secret
@@ -564,8 +564,8 @@ fn usable_normal(n: [f32; 3]) -> bool {
 fn check_corners(obj: &Obj, triangle: &[Corner; 3]) -> Result<(), ConvertError> {
     for c in triangle {
         check_index("position", Some(c.position), obj.positions.len())?;
-        check_index("texture coordinate", c.uv, obj.uvs.len())?;
-        check_index("normal", c.normal, obj.normals.len())?;
+        check_index("texture coordinate", c.uv(), obj.uvs.len())?;
+        check_index("normal", c.normal(), obj.normals.len())?;
         if let Some(colors) = &obj.colors {
             check_index("vertex colour", Some(c.position), colors.len())?;
         }
@@ -593,18 +593,19 @@ impl Usable {
         if !finite_positions(obj, triangle) {
             return Usable(0);
         }
-        let uvs = triangle.iter().filter(|c| c.uv.is_some()).count();
-        let normals = triangle.iter().filter(|c| c.normal.is_some()).count();
+        let uvs = triangle.iter().filter(|c| c.uv().is_some()).count();
+        let normals = triangle.iter().filter(|c| c.normal().is_some()).count();
         let mut flags = Self::FINITE;
         if uvs % 3 != 0 || normals % 3 != 0 {
             flags |= Self::PARTIAL;
         }
         let finite_uv = |c: &Corner| {
-            c.uv.and_then(|i| obj.uvs.get(i as usize))
+            c.uv()
+                .and_then(|i| obj.uvs.get(i as usize))
                 .is_some_and(|uv| uv.iter().all(|v| v.is_finite()))
         };
         let usable = |c: &Corner| {
-            c.normal
+            c.normal()
                 .and_then(|i| obj.normals.get(i as usize))
                 .is_some_and(|&n| usable_normal(n))
         };
@@ -647,10 +648,9 @@ impl Usable {
 
     /// `triangle` with only the attributes it keeps.
     fn keep(self, triangle: &[Corner; 3]) -> [Corner; 3] {
-        triangle.map(|mut c| {
-            c.uv = c.uv.filter(|_| self.uv());
-            c.normal = c.normal.filter(|_| self.normal());
-            c
+        triangle.map(|c| {
+            c.with_uv(c.uv().filter(|_| self.uv()))
+                .with_normal(c.normal().filter(|_| self.normal()))
         })
     }
 }
@@ -748,7 +748,7 @@ fn plan_mesh<'o>(
         let mut triangle = kept.keep(triangle);
         if !kept.normal() {
             for corner in &mut triangle {
-                corner.normal = made.next();
+                *corner = corner.with_normal(made.next());
             }
         }
         let signature = Signature {
@@ -1675,7 +1675,7 @@ impl Writer<'_> {
     fn normals(&mut self, vertices: &[Corner]) -> Result<AccessorIndex, ConvertError> {
         let (obj, generated) = (self.obj, self.generated_normals);
         let normal = |c: &Corner| {
-            let n = c.normal.and_then(|i| {
+            let n = c.normal().and_then(|i| {
                 let i = i as usize;
                 obj.normals
                     .get(i)
@@ -1691,7 +1691,7 @@ impl Writer<'_> {
     fn uvs(&mut self, vertices: &[Corner]) -> Result<AccessorIndex, ConvertError> {
         let obj = self.obj;
         let uv = |c: &Corner| {
-            let uv = c.uv.and_then(|i| obj.uvs.get(i as usize));
+            let uv = c.uv().and_then(|i| obj.uvs.get(i as usize));
             let [u, v] = uv.copied().unwrap_or_default();
             [u, 1.0 - v]
         };
@@ -2313,17 +2313,20 @@ mod tests {
     /// extremes of every index too.
     #[test]
     fn corner_keys_tell_every_corner_apart() {
-        let values = [None, Some(0), Some(1), Some(u32::MAX - 1), Some(u32::MAX)];
+        // The largest u32 is no index (see `Corner`).
+        let values = [
+            None,
+            Some(0),
+            Some(1),
+            Some(u32::MAX - 2),
+            Some(u32::MAX - 1),
+        ];
         let mut keys = HashSet::new();
         let mut corners = 0;
         for position in [0, 1, u32::MAX] {
             for uv in values {
                 for normal in values {
-                    keys.insert(corner_key(&Corner {
-                        position,
-                        uv,
-                        normal,
-                    }));
+                    keys.insert(corner_key(&Corner::new(position, uv, normal)));
                     corners += 1;
                 }
             }
@@ -2465,19 +2468,22 @@ mod tests {
     /// corner has it, finite (and for normals, of non-zero length).
     fn kept(obj: &Obj, t: &[Corner; 3]) -> [Corner; 3] {
         let uv_ok = t.iter().all(|c| {
-            c.uv.is_some_and(|i| obj.uvs[i as usize].iter().all(|v| v.is_finite()))
+            c.uv()
+                .is_some_and(|i| obj.uvs[i as usize].iter().all(|v| v.is_finite()))
         });
         let normal_ok = t.iter().all(|c| {
-            c.normal.is_some_and(|i| {
+            c.normal().is_some_and(|i| {
                 let n = obj.normals[i as usize];
                 let l = n.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>();
                 l.is_finite() && l > 0.0
             })
         });
-        t.map(|c| Corner {
-            position: c.position,
-            uv: c.uv.filter(|_| uv_ok),
-            normal: c.normal.filter(|_| normal_ok),
+        t.map(|c| {
+            Corner::new(
+                c.position,
+                c.uv().filter(|_| uv_ok),
+                c.normal().filter(|_| normal_ok),
+            )
         })
     }
 
@@ -2495,11 +2501,11 @@ mod tests {
                     .map(|c| {
                         (
                             bits(obj.positions[c.position as usize]),
-                            c.uv.map(|i| {
+                            c.uv().map(|i| {
                                 let [u, v] = obj.uvs[i as usize];
                                 bits([u, 1.0 - v])
                             }),
-                            c.normal.map(|i| bits(unit(obj.normals[i as usize]))),
+                            c.normal().map(|i| bits(unit(obj.normals[i as usize]))),
                         )
                     })
                     .collect()
@@ -3129,20 +3135,10 @@ mod tests {
                 ..Obj::default()
             };
             let mut triangles: Vec<[Corner; 3]> = (0..vertices / 3)
-                .map(|t| {
-                    [0, 1, 2].map(|k| Corner {
-                        position: (3 * t + k) as u32,
-                        uv: None,
-                        normal: Some(0),
-                    })
-                })
+                .map(|t| [0, 1, 2].map(|k| Corner::new((3 * t + k) as u32, None, Some(0))))
                 .collect();
             if vertices % 3 != 0 {
-                triangles.push([vertices - 1, 0, 1].map(|p| Corner {
-                    position: p as u32,
-                    uv: None,
-                    normal: Some(0),
-                }));
+                triangles.push([vertices - 1, 0, 1].map(|p| Corner::new(p as u32, None, Some(0))));
             }
             obj.groups.push(FaceGroup {
                 smoothing: vec![0; triangles.len()],
@@ -3268,7 +3264,8 @@ mod tests {
             assert!(err.to_string().contains("no faces"));
         }
         let mut bad = obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-        bad.groups[0].triangles[0][1].normal = Some(5);
+        let corner = &mut bad.groups[0].triangles[0][1];
+        *corner = corner.with_normal(Some(5));
         assert_eq!(
             obj_to_gltf(&bad, None, &none, NormalRequest::default(), &limits).unwrap_err(),
             ConvertError::IndexOutOfRange {
@@ -3368,8 +3365,8 @@ mod tests {
                 seen.insert((
                     g.object.as_deref(),
                     g.material.as_deref(),
-                    c.uv.is_some(),
-                    c.normal.is_some(),
+                    c.uv().is_some(),
+                    c.normal().is_some(),
                     c,
                 ));
             }
@@ -3523,11 +3520,7 @@ mod tests {
         // Three times a chain's length of texture coordinates at one position, in two
         // primitives, each asked for again in reverse order.
         let uvs = 0..3 * CHAIN_LIMIT as u32;
-        let corner = |uv| Corner {
-            position: 1,
-            uv: Some(uv),
-            normal: None,
-        };
+        let corner = |uv| Corner::new(1, Some(uv), None);
         let mut lookups: Vec<(usize, Corner)> = Vec::new();
         for slot in [0, 1] {
             lookups.extend(uvs.clone().map(|uv| (slot, corner(uv))));
@@ -3540,17 +3533,7 @@ mod tests {
         weld.clear();
         assert!(weld.heads.iter().all(|&h| h == NO_ENTRY) && weld.overflow.is_empty());
         weld_against_a_map(&mut weld, &lookups[..5]);
-        assert_eq!(
-            weld.vertex(
-                0,
-                Corner {
-                    position: 2,
-                    ..corner(0)
-                },
-                0
-            ),
-            None
-        );
+        assert_eq!(weld.vertex(0, Corner::new(2, Some(0), None), 0), None);
     }
 
     proptest! {
@@ -3563,7 +3546,7 @@ mod tests {
         ) {
             let lookups: Vec<(usize, Corner)> = lookups
                 .into_iter()
-                .map(|(slot, position, uv, normal)| (slot, Corner { position, uv, normal }))
+                .map(|(slot, position, uv, normal)| (slot, Corner::new(position, uv, normal)))
                 .collect();
             weld_against_a_map(&mut CornerWeld::new(4), &lookups);
         }

@@ -131,15 +131,19 @@ impl ChunkState {
             let i = parse_i64(token)
                 .filter(|&i| i > 0)
                 .ok_or(unreadable(line))?;
-            let zero_based = u32::try_from(i - 1).map_err(|_| unreadable(line))?;
+            // The largest u32 is `Corner`'s mark of a missing index: no file reaches it.
+            let zero_based = u32::try_from(i - 1)
+                .ok()
+                .filter(|&i| i != u32::MAX)
+                .ok_or(unreadable(line))?;
             self.reach_one(kind, i, defined[kind]);
             Ok(zero_based)
         };
-        Ok(Corner {
-            position: index(0, position)?,
-            uv: uv.map(|t| index(1, t)).transpose()?,
-            normal: normal.map(|t| index(2, t)).transpose()?,
-        })
+        Ok(Corner::new(
+            index(0, position)?,
+            uv.map(|t| index(1, t)).transpose()?,
+            normal.map(|t| index(2, t)).transpose()?,
+        ))
     }
 
     /// Records how far a plain triangle's corner reaches (see [`ChunkState::reach`]): its

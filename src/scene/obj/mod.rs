@@ -71,11 +71,61 @@ impl Default for Limits {
 }
 
 /// One triangle corner: 0-based indices into [`Obj`]'s arrays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+///
+/// Twelve bytes: a texture coordinate or normal the corner lacks is held as [`NO_INDEX`]
+/// rather than as an `Option` (eight bytes each), since a large OBJ holds millions of corners
+/// and their array was a third of the converter's memory. No index can be [`NO_INDEX`]: the
+/// readers refuse it as out of range.
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Corner {
     pub position: u32,
-    pub uv: Option<u32>,
-    pub normal: Option<u32>,
+    uv: u32,
+    normal: u32,
+}
+
+/// What [`Corner`] holds for a texture coordinate or normal it lacks.
+const NO_INDEX: u32 = u32::MAX;
+const _: () = assert!(std::mem::size_of::<Corner>() == 12);
+
+impl Corner {
+    /// A corner with these indices; `Some(NO_INDEX)` is taken as `None` (no reader makes it).
+    pub fn new(position: u32, uv: Option<u32>, normal: Option<u32>) -> Corner {
+        Corner {
+            position,
+            uv: uv.unwrap_or(NO_INDEX),
+            normal: normal.unwrap_or(NO_INDEX),
+        }
+    }
+
+    /// The texture coordinate's index, if the corner has one.
+    pub fn uv(&self) -> Option<u32> {
+        Some(self.uv).filter(|&i| i != NO_INDEX)
+    }
+
+    /// The normal's index, if the corner has one.
+    pub fn normal(&self) -> Option<u32> {
+        Some(self.normal).filter(|&i| i != NO_INDEX)
+    }
+
+    /// The same corner with texture coordinate `uv`.
+    pub fn with_uv(self, uv: Option<u32>) -> Corner {
+        Corner::new(self.position, uv, self.normal())
+    }
+
+    /// The same corner with normal `normal`.
+    pub fn with_normal(self, normal: Option<u32>) -> Corner {
+        Corner::new(self.position, self.uv(), normal)
+    }
+}
+
+impl fmt::Debug for Corner {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Corner")
+            .field("position", &self.position)
+            .field("uv", &self.uv())
+            .field("normal", &self.normal())
+            .finish()
+    }
 }
 
 /// A run of faces sharing object, groups and material, in file order. A change of any of them
@@ -701,8 +751,12 @@ fn resolve(token: &[u8], what: &'static str, count: usize, line: usize) -> Resul
     if resolved >= count {
         return Err(out_of_range());
     }
-    // Counts are capped by `Limits`, whose values could exceed u32 only by a caller's choice.
-    u32::try_from(resolved).map_err(|_| out_of_range())
+    // Counts are capped by `Limits`, whose values could exceed u32 only by a caller's choice;
+    // the largest u32 is `Corner`'s mark of a missing index.
+    u32::try_from(resolved)
+        .ok()
+        .filter(|&i| i != NO_INDEX)
+        .ok_or_else(out_of_range)
 }
 
 /// The state that decides which [`FaceGroup`] a face joins.
@@ -867,11 +921,7 @@ impl<'l> Reader<'l> {
         if self.limits.max_polygon_corners < 3 || self.triangles >= self.limits.max_triangles {
             return None;
         }
-        let mut corners = [Corner {
-            position: 0,
-            uv: None,
-            normal: None,
-        }; 3];
+        let mut corners = [Corner::new(0, None, None); 3];
         // The 1-based indices, to check against what is defined.
         let mut indices = [[0u32; 3]; 3];
         let mut shape = None;
@@ -882,11 +932,11 @@ impl<'l> Reader<'l> {
             }
             shape = Some(this_shape);
             *index = read;
-            *corner = Corner {
-                position: read[0] - 1,
-                uv: this_shape.0.then(|| read[1] - 1),
-                normal: this_shape.1.then(|| read[2] - 1),
-            };
+            *corner = Corner::new(
+                read[0] - 1,
+                this_shape.0.then(|| read[1] - 1),
+                this_shape.1.then(|| read[2] - 1),
+            );
         }
         let after = line_end(rest)?;
         let (has_uv, has_normal) = shape?;
@@ -1134,19 +1184,18 @@ impl<'l> Reader<'l> {
                 return Err(bad());
             }
             let corner = match self.chunk.as_deref_mut() {
-                None => Corner {
-                    position: resolve(position, "position", self.obj.positions.len(), line)?,
-                    uv: uv
-                        .map(|t| resolve(t, "texture coordinate", self.obj.uvs.len(), line))
+                None => Corner::new(
+                    resolve(position, "position", self.obj.positions.len(), line)?,
+                    uv.map(|t| resolve(t, "texture coordinate", self.obj.uvs.len(), line))
                         .transpose()?,
-                    normal: normal
+                    normal
                         .map(|t| resolve(t, "normal", self.obj.normals.len(), line))
                         .transpose()?,
-                },
+                ),
                 Some(chunk) => chunk.corner((position, uv, normal), &self.obj, line)?,
             };
-            uvs += usize::from(corner.uv.is_some());
-            normals += usize::from(corner.normal.is_some());
+            uvs += usize::from(corner.uv().is_some());
+            normals += usize::from(corner.normal().is_some());
             self.corners.push(corner);
         }
         let n = self.corners.len();
@@ -1156,11 +1205,13 @@ impl<'l> Reader<'l> {
         }
         if uvs != 0 && uvs != n {
             self.obj.warnings.faces_with_partial_uvs += 1;
-            self.corners.iter_mut().for_each(|c| c.uv = None);
+            self.corners.iter_mut().for_each(|c| *c = c.with_uv(None));
         }
         if normals != 0 && normals != n {
             self.obj.warnings.faces_with_partial_normals += 1;
-            self.corners.iter_mut().for_each(|c| c.normal = None);
+            self.corners
+                .iter_mut()
+                .for_each(|c| *c = c.with_normal(None));
         }
         let added = n - 2;
         if self.triangles + added > self.limits.max_triangles {
@@ -1681,11 +1732,7 @@ mod tests {
     }
 
     fn corner(position: u32, uv: Option<u32>, normal: Option<u32>) -> Corner {
-        Corner {
-            position,
-            uv,
-            normal,
-        }
+        Corner::new(position, uv, normal)
     }
 
     fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -1925,13 +1972,22 @@ mod tests {
              f 1/1/1 2/1 3/1/1\nf 1//1 2 3\nf 1/1/1 2/1/1 3/1/1\n",
         );
         let t = &obj.groups[0].triangles;
-        assert!(t[0].iter().all(|c| c.uv == Some(0) && c.normal.is_none()));
-        assert!(t[1].iter().all(|c| c.uv.is_none() && c.normal.is_none()));
-        assert!(t[2].iter().all(|c| c.uv == Some(0) && c.normal == Some(0)));
+        assert!(
+            t[0].iter()
+                .all(|c| c.uv() == Some(0) && c.normal().is_none())
+        );
+        assert!(
+            t[1].iter()
+                .all(|c| c.uv().is_none() && c.normal().is_none())
+        );
+        assert!(
+            t[2].iter()
+                .all(|c| c.uv() == Some(0) && c.normal() == Some(0))
+        );
         assert_eq!(obj.warnings.faces_with_partial_uvs, 0);
         assert_eq!(obj.warnings.faces_with_partial_normals, 2);
         let obj = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2 3/1\n");
-        assert!(obj.groups[0].triangles[0].iter().all(|c| c.uv.is_none()));
+        assert!(obj.groups[0].triangles[0].iter().all(|c| c.uv().is_none()));
         assert_eq!(obj.warnings.faces_with_partial_uvs, 1);
     }
 
@@ -2110,6 +2166,19 @@ mod tests {
         let err = parse_err(&format!("{head}f 1 2 -9223372036854775808\n"));
         assert!(
             matches!(err.kind, ObjErrorKind::IndexOutOfRange { .. }),
+            "{err:?}"
+        );
+        // The one index whose 0-based form is `Corner`'s mark of a missing one.
+        let err = parse_err(&format!("{head}f 1/4294967296 2/1 3/1\n"));
+        assert!(
+            matches!(
+                err.kind,
+                ObjErrorKind::IndexOutOfRange {
+                    what: "texture coordinate",
+                    index: 4294967296,
+                    ..
+                }
+            ),
             "{err:?}"
         );
         // References must follow definitions.
@@ -2341,7 +2410,7 @@ mod tests {
                 .triangles
                 .iter()
                 .flatten()
-                .all(|c| c.uv.is_none() && c.normal == Some(0))
+                .all(|c| c.uv().is_none() && c.normal() == Some(0))
         );
         // Rebuild the face's corner list from the file to check the tiling against it.
         let text = String::from_utf8(bytes).unwrap();
@@ -2429,7 +2498,7 @@ mod tests {
                 .iter()
                 .flat_map(|g| &g.triangles)
                 .flatten()
-                .all(|c| c.uv.is_some() && c.normal.is_some())
+                .all(|c| c.uv().is_some() && c.normal().is_some())
         );
         let mtl = parse_mtl(&mtl_bytes).unwrap();
         assert_eq!(mtl.materials.len(), 5);
@@ -2754,8 +2823,8 @@ mod tests {
             if let Ok(obj) = parse_obj(text.as_bytes(), &Limits::default()) {
                 for c in obj.groups.iter().flat_map(|g| &g.triangles).flatten() {
                     prop_assert!((c.position as usize) < obj.positions.len());
-                    prop_assert!(c.uv.is_none_or(|i| (i as usize) < obj.uvs.len()));
-                    prop_assert!(c.normal.is_none_or(|i| (i as usize) < obj.normals.len()));
+                    prop_assert!(c.uv().is_none_or(|i| (i as usize) < obj.uvs.len()));
+                    prop_assert!(c.normal().is_none_or(|i| (i as usize) < obj.normals.len()));
                 }
                 for g in &obj.groups {
                     prop_assert_eq!(g.triangles.len(), g.smoothing.len());
