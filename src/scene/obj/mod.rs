@@ -72,9 +72,9 @@ impl Default for Limits {
 
 /// One triangle corner: 0-based indices into [`Obj`]'s arrays.
 ///
-/// Twelve bytes: a texture coordinate or normal the corner lacks is held as [`NO_INDEX`]
+/// Twelve bytes: a texture coordinate or normal the corner lacks is held as the largest `u32`
 /// rather than as an `Option` (eight bytes each), since a large OBJ holds millions of corners
-/// and their array was a third of the converter's memory. No index can be [`NO_INDEX`]: the
+/// and their array was nearly a third of the converter's peak. No index can be that value: the
 /// readers refuse it as out of range.
 #[derive(Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Corner {
