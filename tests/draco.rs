@@ -15,6 +15,7 @@ use tspace::scene::gltf::accessor::ComponentType;
 use tspace::scene::gltf::draco::{self, DracoLimits};
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
 use tspace::scene::gltf::process;
+use tspace::scene::report::MeshCompression;
 use tspace_testkit::fixtures::{assert_valid_output, glb_json, workspace_root};
 use tspace_testkit::meshes::load_gltf;
 use tspace_testkit::{angle_degrees, reference_is_valid, reference_tangents};
@@ -209,8 +210,12 @@ fn draco_fixtures_round_trip_with_reference_tangents() {
             .filter(|p| p.action != "skipped")
         {
             let storage = p.storage.as_ref().unwrap();
-            assert_eq!(storage.compression_in, "draco", "{file}");
-            assert_eq!(storage.compression_out, Some("none"), "{file}");
+            assert_eq!(storage.compression_in, MeshCompression::Draco, "{file}");
+            assert_eq!(
+                storage.compression_out,
+                Some(MeshCompression::None),
+                "{file}"
+            );
             assert!(storage.why.unwrap().contains("Draco"), "{file}");
             assert!(storage.bytes_out.unwrap() > 0, "{file}");
         }
@@ -321,7 +326,7 @@ fn a_changed_primitive_leaves_draco_and_its_neighbour_keeps_its_stream() {
         .iter()
         .map(|p| p.storage.as_ref().unwrap().compression_out.unwrap())
         .collect();
-    assert_eq!(storage, ["none", "draco"]);
+    assert_eq!(storage, [MeshCompression::None, MeshCompression::Draco]);
     let bytes = processed.bytes.unwrap();
     assert_valid_output("MorphPrimitivesTest_draco mixed", &bytes);
     let out = tspace::scene::gltf::glb::parse(&bytes).unwrap();

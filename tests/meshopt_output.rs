@@ -11,6 +11,7 @@ use std::process::Command;
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
 use tspace::scene::gltf::process;
 use tspace::scene::options::Compression;
+use tspace::scene::report::TangentComponent;
 use tspace::scene::{Processed, SceneOptions};
 use tspace_testkit::fixtures::{assert_valid_output, glb_json, workspace_root};
 use tspace_testkit::written::{read_primitives, worst_angle_to_reference};
@@ -173,7 +174,7 @@ fn gltfpack_cc_comes_back_compressed_exact_and_compact() {
     // and filter too (within 0.75° of the float tangent, the grid's bound); the rest is the same
     // values compressed or not.
     let tangent = report.primitives[0].tangent.unwrap();
-    assert_eq!(tangent.component_type, "byte");
+    assert_eq!(tangent.component_type, TangentComponent::Byte);
     assert!(tangent.max_quantization_degrees.unwrap() <= 0.75);
     let tangent_view = {
         let accessor = json["meshes"][0]["primitives"][0]["attributes"]["TANGENT"]

@@ -5,6 +5,7 @@
 use tspace::scene::gltf::accessor::ComponentType;
 use tspace::scene::gltf::load::NoResources;
 use tspace::scene::gltf::process;
+use tspace::scene::report::TangentComponent;
 use tspace::scene::{SceneOptions, TangentType};
 use tspace_testkit::fixtures::{assert_valid_output, workspace_root};
 use tspace_testkit::written::{read_primitives, worst_angle_to_reference};
@@ -37,7 +38,7 @@ fn quantized_normals_get_tangents_of_their_own_type() {
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         for p in &processed.report.primitives {
             let tangent = p.tangent.unwrap();
-            assert_eq!(tangent.component_type, "byte", "{name}");
+            assert_eq!(tangent.component_type, TangentComponent::Byte, "{name}");
             let added = f64::from(tangent.max_quantization_degrees.unwrap());
             assert!(
                 added <= quantization_bound_degrees(127.0),
@@ -67,7 +68,7 @@ fn float_tangents_when_asked() {
             .tangent
             .unwrap()
             .component_type,
-        "float"
+        TangentComponent::Float
     );
     let bytes = processed.bytes.unwrap();
     assert_valid_output(name, &bytes);
@@ -90,6 +91,6 @@ fn float_normals_keep_float_tangents() {
             .tangent
             .unwrap()
             .component_type,
-        "float"
+        TangentComponent::Float
     );
 }

@@ -129,6 +129,10 @@ pub struct Dropped {
     pub kept_because: Option<String>,
 }
 
+// A scene may have a hundred thousand primitives, each with an entry held beside the scene's
+// tree at the scene layer's peak; a change that grows it should be a decision.
+const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 248);
+
 /// Boxed parts keep an entry small when they are absent: a scene may have a hundred thousand
 /// primitives.
 #[derive(Clone, Debug, Default, Serialize, ToSchema)]
@@ -147,7 +151,8 @@ pub struct PrimitiveReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<&'static str>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub message: Option<String>,
+    #[schema(value_type = Option<String>)]
+    pub message: Option<Box<str>>,
     /// What in the material asked for a tangent frame.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uses: Option<&'static str>,
@@ -248,14 +253,26 @@ pub struct FallbackReport {
     pub not_orthogonal: u64,
 }
 
-/// Tangent deltas computed for morph targets.
+/// How a primitive's geometry is compressed in a file. An enum rather than its name, so that a
+/// report entry stays small (a scene may have a hundred thousand); written as the name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MeshCompression {
+    #[default]
+    None,
+    Draco,
+    Meshopt,
+}
+
 /// How a primitive's geometry is stored in the input and in the output, and what it takes.
 #[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct StorageReport {
     /// `none`, `draco` or `meshopt`.
-    pub compression_in: &'static str,
+    #[schema(value_type = String)]
+    pub compression_in: MeshCompression,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub compression_out: Option<&'static str>,
+    #[schema(value_type = Option<String>)]
+    pub compression_out: Option<MeshCompression>,
     /// Bytes of the buffer views the primitive reads (each once; compressed at compressed size).
     pub bytes_in: u64,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -265,11 +282,22 @@ pub struct StorageReport {
     pub why: Option<&'static str>,
 }
 
+/// A written TANGENT's component type, written as its name (`float`, `byte`, `short`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TangentComponent {
+    #[default]
+    Float,
+    Byte,
+    Short,
+}
+
 /// The component type of a written TANGENT, and for a quantized one what quantizing cost.
 #[derive(Clone, Copy, Debug, Default, Serialize, ToSchema)]
 pub struct TangentReport {
     /// `float`, or the normals' own `byte` or `short` (normalized, KHR_mesh_quantization).
-    pub component_type: &'static str,
+    #[schema(value_type = String)]
+    pub component_type: TangentComponent,
     /// The largest angle between a computed tangent and its quantized value, in degrees.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_quantization_degrees: Option<f32>,
@@ -280,13 +308,13 @@ impl TangentReport {
         use crate::scene::gltf::quantize::Snorm;
         match quantized {
             None => TangentReport {
-                component_type: "float",
+                component_type: TangentComponent::Float,
                 max_quantization_degrees: None,
             },
             Some((snorm, degrees)) => TangentReport {
                 component_type: match snorm {
-                    Snorm::I8 => "byte",
-                    Snorm::I16 => "short",
+                    Snorm::I8 => TangentComponent::Byte,
+                    Snorm::I16 => TangentComponent::Short,
                 },
                 max_quantization_degrees: Some(degrees),
             },

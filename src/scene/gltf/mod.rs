@@ -560,7 +560,7 @@ fn report_primitive(
             report.summary.skipped += 1;
             entry.action = "skipped";
             entry.reason = Some(reason.code());
-            entry.message = Some(reason.message());
+            entry.message = Some(reason.message().into_boxed_str());
         }
         (Action::Audit, Some((j, c))) => {
             report.summary.audited += 1;
@@ -981,8 +981,8 @@ fn report_storage(
         };
         let output = after.as_ref().and_then(|a| a.primitive(key));
         entry.storage = Some(StorageReport {
-            compression_in: input.compression.name(),
-            compression_out: output.map(|o| o.compression.name()),
+            compression_in: input.compression,
+            compression_out: output.map(|o| o.compression),
             bytes_in: input.bytes,
             bytes_out: output.map(|o| o.bytes),
             why: output.and_then(|o| why_storage_changed(input.compression, o.compression)),

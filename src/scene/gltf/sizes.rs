@@ -9,23 +9,8 @@
 use super::draco;
 use tspace_json::{Node, Text};
 
-/// How a primitive's geometry is stored.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Compression {
-    None,
-    Draco,
-    Meshopt,
-}
-
-impl Compression {
-    pub fn name(self) -> &'static str {
-        match self {
-            Compression::None => "none",
-            Compression::Draco => "draco",
-            Compression::Meshopt => "meshopt",
-        }
-    }
-}
+/// How a primitive's geometry is stored: the report's own type.
+pub use crate::scene::report::MeshCompression as Compression;
 
 /// One primitive's storage.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
