@@ -130,12 +130,12 @@ impl ChunkState {
         let mut index = |kind: usize, token: &[u8]| -> Result<u32, ObjError> {
             let i = parse_i64(token)
                 .filter(|&i| i > 0)
-                .ok_or(unreadable(line))?;
+                .ok_or_else(|| unreadable(line))?;
             // The largest u32 is `Corner`'s mark of a missing index: no file reaches it.
             let zero_based = u32::try_from(i - 1)
                 .ok()
                 .filter(|&i| i != u32::MAX)
-                .ok_or(unreadable(line))?;
+                .ok_or_else(|| unreadable(line))?;
             self.reach_one(kind, i, defined[kind]);
             Ok(zero_based)
         };
