@@ -831,33 +831,48 @@ fn http_against_in_process(scene: &Scene, config: &Config, csv: &mut String) {
     });
 }
 
+/// Makes a scene in a folder, small when asked for a quick run; `None` when it cannot.
+type MakeScene = fn(&Path, bool) -> Option<Scene>;
+
 fn main() {
     let config = Config::from_env_and_args();
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("whole-path");
     std::fs::create_dir_all(&dir).expect("a scratch folder");
     let wanted = |name: &str| config.filter.as_deref().is_none_or(|f| name.contains(f));
-    let mut scenes = Vec::new();
-    if wanted("sphere") {
-        scenes.push(sphere(&dir, config.quick));
+    // The filter picks scenes by these labels, not by the names printed for them (which carry
+    // sizes).
+    let makers: [(&str, MakeScene); 6] = [
+        ("sphere", |dir, quick| Some(sphere(dir, quick))),
+        ("OBJ sphere", |dir, quick| Some(obj_sphere(dir, quick))),
+        ("JSON-heavy", |dir, quick| {
+            Some(json_heavy(dir, quick, true))
+        }),
+        ("JSON-heavy without normals", |dir, quick| {
+            Some(json_heavy(dir, quick, false))
+        }),
+        ("JSON-heavy, one geometry shared", |dir, quick| {
+            Some(json_heavy_shared(dir, quick))
+        }),
+        ("DamagedHelmet", |dir, _| {
+            let scene = helmet(dir);
+            if scene.is_none() {
+                println!("note: DamagedHelmet skipped: ../shared/corpus is not present");
+            }
+            scene
+        }),
+    ];
+    if let Some(filter) = &config.filter
+        && !makers.iter().any(|(label, _)| wanted(label))
+    {
+        let labels: Vec<&str> = makers.iter().map(|(label, _)| *label).collect();
+        eprintln!("whole_path: no scene's label contains {filter:?}; the labels are {labels:?}");
+        std::process::exit(2);
     }
-    if wanted("OBJ sphere") {
-        scenes.push(obj_sphere(&dir, config.quick));
-    }
-    if wanted("JSON-heavy") {
-        scenes.push(json_heavy(&dir, config.quick, true));
-    }
-    if wanted("JSON-heavy without normals") {
-        scenes.push(json_heavy(&dir, config.quick, false));
-    }
-    if wanted("JSON-heavy, one geometry shared") {
-        scenes.push(json_heavy_shared(&dir, config.quick));
-    }
-    if wanted("DamagedHelmet") {
-        match helmet(&dir) {
-            Some(scene) => scenes.push(scene),
-            None => println!("note: DamagedHelmet skipped: ../shared/corpus is not present"),
-        }
-    }
+    let scenes: Vec<Scene> = makers
+        .iter()
+        .filter(|(label, _)| wanted(label))
+        .filter_map(|(_, make)| make(&dir, config.quick))
+        .collect();
     let mut csv = String::from(
         "scene,triangles,input_bytes,cli_ms,cli_peak_rss_bytes,in_process_ms,compute_ms,scene_layer_ms,tspace_core_ms,meshopt_compatible_ms,bevy_ms,whole_over_meshopt,whole_over_bevy,service_ms,service_peak_rss_bytes\n",
     );
