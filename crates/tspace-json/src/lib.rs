@@ -1877,16 +1877,17 @@ impl ObjectEdit<'_> {
             }
         };
         let mut comma = (0..n).any(|i| !removed(i));
-        // One allocation for the members' text, of its length.
+        // One allocation for the members' text, of its length (a key with escapes may grow it).
+        // Lengths as bytes: a `Text` read as a `str` is checked as UTF-8 again.
         let len: usize = self
             .added
             .iter()
             .map(|(key, value)| {
                 let value = match value {
-                    NewValue::Text(t) => t.len(),
+                    NewValue::Text(t) => t.as_bytes().len(),
                     NewValue::Array { items, .. } => items.len() + 2,
                 };
-                1 + lead.len() + key.len() + 2 + colon.len() + value
+                1 + lead.len() + key.as_bytes().len() + 2 + colon.len() + value
             })
             .sum();
         let mut text = String::with_capacity(len);

@@ -22,7 +22,7 @@
 
 use super::{
     Corner, FaceGroup, GroupKey, Limits, Lines, Obj, ObjError, ObjErrorKind, Reader, Triangulation,
-    error, parse_i64, triangulate,
+    corner_index, error, parse_i64, triangulate,
 };
 use rayon::prelude::*;
 
@@ -131,11 +131,7 @@ impl ChunkState {
             let i = parse_i64(token)
                 .filter(|&i| i > 0)
                 .ok_or_else(|| unreadable(line))?;
-            // The largest u32 is `Corner`'s mark of a missing index: no file reaches it.
-            let zero_based = u32::try_from(i - 1)
-                .ok()
-                .filter(|&i| i != u32::MAX)
-                .ok_or_else(|| unreadable(line))?;
+            let zero_based = corner_index(i - 1).ok_or_else(|| unreadable(line))?;
             self.reach_one(kind, i, defined[kind]);
             Ok(zero_based)
         };

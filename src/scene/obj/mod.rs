@@ -87,6 +87,12 @@ pub struct Corner {
 const NO_INDEX: u32 = u32::MAX;
 const _: () = assert!(std::mem::size_of::<Corner>() == 12);
 
+/// A 0-based index as a corner holds it, or `None` where no corner can: beyond `u32`, or
+/// [`Corner`]'s mark of a missing index. Both readers refuse such an index through this.
+fn corner_index(zero_based: impl TryInto<u32>) -> Option<u32> {
+    zero_based.try_into().ok().filter(|&i| i != NO_INDEX)
+}
+
 impl Corner {
     /// A corner with these indices; `Some(NO_INDEX)` is taken as `None` (no reader makes it).
     pub fn new(position: u32, uv: Option<u32>, normal: Option<u32>) -> Corner {
@@ -751,12 +757,8 @@ fn resolve(token: &[u8], what: &'static str, count: usize, line: usize) -> Resul
     if resolved >= count {
         return Err(out_of_range());
     }
-    // Counts are capped by `Limits`, whose values could exceed u32 only by a caller's choice;
-    // the largest u32 is `Corner`'s mark of a missing index.
-    u32::try_from(resolved)
-        .ok()
-        .filter(|&i| i != NO_INDEX)
-        .ok_or_else(out_of_range)
+    // Counts are capped by `Limits`, whose values could exceed u32 only by a caller's choice.
+    corner_index(resolved).ok_or_else(out_of_range)
 }
 
 /// The state that decides which [`FaceGroup`] a face joins.
