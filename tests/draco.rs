@@ -216,7 +216,7 @@ fn draco_fixtures_round_trip_with_reference_tangents() {
                 Some(MeshCompression::None),
                 "{file}"
             );
-            assert!(storage.why.unwrap().contains("Draco"), "{file}");
+            assert!(storage.why.unwrap().as_str().contains("Draco"), "{file}");
             assert!(storage.bytes_out.unwrap() > 0, "{file}");
         }
         let bytes = processed.bytes.unwrap();

@@ -113,7 +113,7 @@ fn an_obj_without_uvs_is_converted_with_its_primitives_skipped_unless_axis() {
     let skipped = process(InputKind::Obj, &obj, &PartSet::new(), &all).unwrap();
     let entry = &skipped.report.primitives[0];
     assert_eq!(
-        (entry.action, entry.reason),
+        (entry.action.as_str(), entry.reason),
         ("skipped", Some("no_texcoords"))
     );
     assert!(skipped.bytes.is_some());

@@ -131,22 +131,27 @@ pub struct Dropped {
 
 // A scene may have a hundred thousand primitives, each with an entry held beside the scene's
 // tree at the scene layer's peak; a change that grows it should be a decision.
-const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 248);
+const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 160);
 
 /// Boxed parts keep an entry small when they are absent: a scene may have a hundred thousand
 /// primitives.
 #[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct PrimitiveReport {
-    pub mesh: usize,
-    pub primitive: usize,
+    // Indices as 32 bits: they index arrays of a JSON text, which is under 4 GiB.
+    #[schema(value_type = usize)]
+    pub mesh: u32,
+    #[schema(value_type = usize)]
+    pub primitive: u32,
     // Shared by the mesh's primitives: a scene may have a hundred thousand in one mesh.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<String>)]
     pub mesh_name: Option<Arc<str>>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub material: Option<usize>,
+    #[schema(value_type = Option<usize>)]
+    pub material: Option<u32>,
     /// `generated`, `overwritten`, `audited` (existing tangents kept and compared) or `skipped`.
-    pub action: &'static str,
+    #[schema(value_type = String)]
+    pub action: PrimitiveAction,
     /// For `skipped`: a stable code and a sentence.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reason: Option<&'static str>,
@@ -155,12 +160,14 @@ pub struct PrimitiveReport {
     pub message: Option<Box<str>>,
     /// What in the material asked for a tangent frame.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub uses: Option<&'static str>,
+    #[schema(value_type = Option<String>)]
+    pub uses: Option<FrameUse>,
     pub texcoord: u32,
     /// The first primitive `[mesh, primitive]` with the same geometry, whose result this one
     /// shares, when it is not this one.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub shared_with: Option<[usize; 2]>,
+    #[schema(value_type = Option<[usize; 2]>)]
+    pub shared_with: Option<[u32; 2]>,
     /// The core's findings; absent when `shared_with` is set (they are on that primitive).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub diagnostics: Option<Box<DiagnosticsReport>>,
@@ -174,8 +181,127 @@ pub struct PrimitiveReport {
     /// How the primitive's geometry is stored, in and out.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub storage: Option<StorageReport>,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub notes: Vec<String>,
+    #[serde(skip_serializing_if = "Notes::is_empty")]
+    #[schema(value_type = Vec<String>)]
+    pub notes: Notes,
+}
+
+/// An index into one of a document's JSON arrays, as the report holds it: every element of such
+/// an array takes at least a byte of a text under 4 GiB, so every index fits.
+pub fn index32(index: usize) -> u32 {
+    u32::try_from(index).unwrap_or(u32::MAX)
+}
+
+/// What became of a primitive, written as its name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PrimitiveAction {
+    Generated,
+    /// Tangents it had were replaced (`overwrite`).
+    Overwritten,
+    /// Existing tangents kept and compared with MikkTSpace.
+    Audited,
+    #[default]
+    Skipped,
+}
+
+impl PrimitiveAction {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PrimitiveAction::Generated => "generated",
+            PrimitiveAction::Overwritten => "overwritten",
+            PrimitiveAction::Audited => "audited",
+            PrimitiveAction::Skipped => "skipped",
+        }
+    }
+}
+
+/// What in a material asks for a tangent frame, written as the glTF name of the texture or
+/// extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameUse {
+    NormalTexture,
+    ClearcoatNormalTexture,
+    Anisotropy,
+}
+
+impl FrameUse {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FrameUse::NormalTexture => "normalTexture",
+            FrameUse::ClearcoatNormalTexture => "KHR_materials_clearcoat.clearcoatNormalTexture",
+            FrameUse::Anisotropy => "KHR_materials_anisotropy",
+        }
+    }
+}
+
+/// The report's words for values it holds as enums (a scene may have a hundred thousand
+/// entries): written, displayed and compared as those words.
+macro_rules! written_as_str {
+    ($($name:ident),*) => {$(
+        impl Serialize for $name {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+                serializer.serialize_str(self.as_str())
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.as_str())
+            }
+        }
+
+        impl PartialEq<&str> for $name {
+            fn eq(&self, other: &&str) -> bool {
+                self.as_str() == *other
+            }
+        }
+    )*};
+}
+
+written_as_str!(PrimitiveAction, FrameUse, StorageChange);
+
+/// A primitive's notes. Nearly every primitive has none, and a scene may have a hundred
+/// thousand: an empty list here is one null pointer, where a `Vec` takes 24 bytes.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Notes(Option<Box<Box<[String]>>>);
+
+impl Notes {
+    pub fn push(&mut self, note: String) {
+        let mut notes = self
+            .0
+            .take()
+            .map_or_else(Vec::new, |notes| notes.into_vec());
+        notes.push(note);
+        *self = Notes::from(notes);
+    }
+
+    pub fn as_slice(&self) -> &[String] {
+        self.0.as_deref().map_or(&[], |notes| notes)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_none()
+    }
+}
+
+impl std::ops::Deref for Notes {
+    type Target = [String];
+
+    fn deref(&self) -> &[String] {
+        self.as_slice()
+    }
+}
+
+impl From<Vec<String>> for Notes {
+    fn from(notes: Vec<String>) -> Notes {
+        Notes((!notes.is_empty()).then(|| Box::new(notes.into_boxed_slice())))
+    }
+}
+
+impl Serialize for Notes {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        self.as_slice().serialize(serializer)
+    }
 }
 
 /// The core's [`Diagnostics`], for JSON.
@@ -279,7 +405,32 @@ pub struct StorageReport {
     pub bytes_out: Option<u64>,
     /// Why the compression changed, when it did.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub why: Option<&'static str>,
+    #[schema(value_type = Option<String>)]
+    pub why: Option<StorageChange>,
+}
+
+/// Why a primitive's compression changed, written as a sentence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StorageChange {
+    OutOfDraco,
+    DracoToMeshopt,
+    Uncompressed,
+    ToMeshopt,
+}
+
+impl StorageChange {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StorageChange::OutOfDraco => {
+                "written out of Draco: the primitive changed, and encoding Draco again would quantize it again"
+            }
+            StorageChange::DracoToMeshopt => {
+                "written out of Draco (encoding it again would quantize it again), with lossless meshopt compression"
+            }
+            StorageChange::Uncompressed => "written uncompressed",
+            StorageChange::ToMeshopt => "compressed with meshopt, as compress=meshopt asks",
+        }
+    }
 }
 
 /// A written TANGENT's component type, written as its name (`float`, `byte`, `short`).
@@ -643,7 +794,7 @@ impl Report {
         let notices = &self.notices;
         let mut findings = Vec::new();
         for p in &self.primitives {
-            let at = Some([p.mesh, p.primitive]);
+            let at = Some([p.mesh as usize, p.primitive as usize]);
             if let Some(d) = &p.diagnostics {
                 for &(code, severity, meaning, count_of) in DIAGNOSTIC_FINDINGS {
                     let count = count_of(d);
@@ -702,6 +853,40 @@ mod tests {
             count,
             first: FirstFew::new(&[0]),
         }
+    }
+
+    #[test]
+    fn an_entry_held_in_enums_and_thin_lists_is_written_as_the_words_it_stands_for() {
+        let mut entry = PrimitiveReport {
+            mesh: 2,
+            primitive: 7,
+            action: PrimitiveAction::Overwritten,
+            uses: Some(FrameUse::ClearcoatNormalTexture),
+            shared_with: Some([1, 3]),
+            storage: Some(StorageReport {
+                why: Some(StorageChange::Uncompressed),
+                ..StorageReport::default()
+            }),
+            ..PrimitiveReport::default()
+        };
+        let json = serde_json::to_value(&entry).unwrap();
+        assert_eq!(json["mesh"], 2);
+        assert_eq!(json["action"], "overwritten");
+        assert_eq!(
+            json["uses"],
+            "KHR_materials_clearcoat.clearcoatNormalTexture"
+        );
+        assert_eq!(json["shared_with"], serde_json::json!([1, 3]));
+        assert_eq!(json["storage"]["why"], "written uncompressed");
+        assert!(json.get("notes").is_none(), "no notes, no member: {json}");
+
+        entry.notes.push("first".into());
+        entry.notes.push("second".into());
+        assert_eq!(entry.notes.as_slice(), ["first", "second"]);
+        let json = serde_json::to_value(&entry).unwrap();
+        assert_eq!(json["notes"], serde_json::json!(["first", "second"]));
+        assert_eq!(Notes::from(Vec::new()), Notes::default());
+        assert_eq!(PrimitiveAction::default(), "skipped");
     }
 
     #[test]

@@ -22,8 +22,8 @@ use crate::scene::layout::{Layout, PrimitiveRef};
 use crate::scene::options::{Debug, Timings};
 use crate::scene::pieces::Pieces;
 use crate::scene::report::{
-    DebugClassReport, DebugColorsReport, MorphReport, Notice, PrimitiveReport, Report,
-    StorageReport, TangentReport, thousands,
+    DebugClassReport, DebugColorsReport, MorphReport, Notice, PrimitiveAction, PrimitiveReport,
+    Report, StorageChange, StorageReport, TangentReport, index32, thousands,
 };
 use crate::scene::{OutputFormat, Processed, SceneOptions, TangentType};
 use accessor::{Data, DecodedAccessors};
@@ -525,7 +525,7 @@ fn report_primitives(
             .map(|(first, _)| first)
             .filter(|&first| first != p)
             .and_then(|first| plans.get(first))
-            .map(|first| [first.mesh, first.primitive]);
+            .map(|first| [index32(first.mesh), index32(first.primitive)]);
         report_primitive(
             scene,
             (plan, job, shared_with),
@@ -547,7 +547,7 @@ fn report_primitives(
 /// another), and its edit when it gets tangents.
 fn report_primitive(
     scene: &Scene<'_>,
-    (plan, job, shared_with): (&PrimitivePlan, Option<usize>, Option<[usize; 2]>),
+    (plan, job, shared_with): (&PrimitivePlan, Option<usize>, Option<[u32; 2]>),
     computed: &[Option<Computed>],
     edits: &mut Edits,
     report: &mut Report,
@@ -558,7 +558,7 @@ fn report_primitive(
     match (&plan.action, computation) {
         (Action::Skip(reason), _) => {
             report.summary.skipped += 1;
-            entry.action = "skipped";
+            entry.action = PrimitiveAction::Skipped;
             entry.reason = Some(reason.code());
             entry.message = Some(reason.message().into_boxed_str());
         }
@@ -582,7 +582,7 @@ fn report_primitive(
                 return Ok(());
             }
         }
-        _ => entry.action = "skipped",
+        _ => entry.action = PrimitiveAction::Skipped,
     }
     if let Some(note) = painted_note(scene.root, plan, edits) {
         entry.notes.push(note);
@@ -679,15 +679,15 @@ fn report_painting(report: &mut Report, root: &Node, painted: &[Painted], edits:
 }
 
 /// What the plan knows of a primitive, before any action.
-fn report_entry(plan: &PrimitivePlan, shared_with: Option<[usize; 2]>) -> PrimitiveReport {
+fn report_entry(plan: &PrimitivePlan, shared_with: Option<[u32; 2]>) -> PrimitiveReport {
     PrimitiveReport {
-        mesh: plan.mesh,
-        primitive: plan.primitive,
+        mesh: index32(plan.mesh),
+        primitive: index32(plan.primitive),
         mesh_name: plan.mesh_name.clone(),
-        material: plan.material,
+        material: plan.material.map(index32),
         uses: plan.uses,
         texcoord: plan.texcoord_set,
-        notes: plan.notes.clone(),
+        notes: plan.notes.clone().into(),
         shared_with,
         ..PrimitiveReport::default()
     }
@@ -709,7 +709,7 @@ fn audit_primitive(
     entry: &mut PrimitiveReport,
     report: &mut Report,
 ) -> Result<(), SceneError> {
-    entry.action = "audited";
+    entry.action = PrimitiveAction::Audited;
     let tangent = primitive_node(scene.root, plan.mesh, plan.primitive)
         .and_then(|n| n.get("attributes")?.get("TANGENT")?.as_u64())
         .and_then(|i| usize::try_from(i).ok());
@@ -747,9 +747,9 @@ fn generate_primitive(
     edits: &mut Edits,
 ) -> Result<bool, SceneError> {
     entry.action = if plan.had_tangents {
-        "overwritten"
+        PrimitiveAction::Overwritten
     } else {
-        "generated"
+        PrimitiveAction::Generated
     };
     add_diagnostics(entry, c);
     let Some(key) = &plan.key else {
@@ -975,7 +975,7 @@ fn report_storage(
     report.summary.mesh_bytes_in = before.total;
     report.summary.mesh_bytes_out = after.as_ref().map(|a| a.total);
     for entry in &mut report.primitives {
-        let key = (entry.mesh, entry.primitive);
+        let key = (entry.mesh as usize, entry.primitive as usize);
         let Some(input) = before.primitive(key) else {
             continue;
         };
@@ -1019,17 +1019,13 @@ fn output_sizes(json: &[u8]) -> Result<sizes::MeshSizes, SceneError> {
 fn why_storage_changed(
     input: sizes::Compression,
     output: sizes::Compression,
-) -> Option<&'static str> {
+) -> Option<StorageChange> {
     use sizes::Compression::{Draco, Meshopt, None};
     match (input, output) {
-        (Draco, None) => Some(
-            "written out of Draco: the primitive changed, and encoding Draco again would quantize it again",
-        ),
-        (Draco, Meshopt) => Some(
-            "written out of Draco (encoding it again would quantize it again), with lossless meshopt compression",
-        ),
-        (Meshopt, None) => Some("written uncompressed"),
-        (None, Meshopt) => Some("compressed with meshopt, as compress=meshopt asks"),
+        (Draco, None) => Some(StorageChange::OutOfDraco),
+        (Draco, Meshopt) => Some(StorageChange::DracoToMeshopt),
+        (Meshopt, None) => Some(StorageChange::Uncompressed),
+        (None, Meshopt) => Some(StorageChange::ToMeshopt),
         _ => Option::None,
     }
 }

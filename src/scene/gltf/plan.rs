@@ -8,6 +8,7 @@
 //! reason. Primitives with the same mode, indices, `POSITION`, `NORMAL`, texture coordinates and
 //! morph targets are computed once.
 
+use crate::scene::report::FrameUse;
 use std::sync::Arc;
 use tspace_json::Node;
 
@@ -117,7 +118,7 @@ pub struct PrimitivePlan {
     /// The texture-coordinate set the tangent frame follows.
     pub texcoord_set: u32,
     /// What in the material asked for a tangent frame (`normalTexture`…), if anything.
-    pub uses: Option<&'static str>,
+    pub uses: Option<FrameUse>,
     pub had_tangents: bool,
     pub action: Action,
     /// Set for [`Action::Generate`] and [`Action::Audit`].
@@ -141,7 +142,7 @@ pub struct PlanOptions {
 /// What a material says about tangents: whether it uses a frame, for which feature, on which
 /// texture-coordinate set, and any notes.
 struct MaterialUse {
-    uses: Option<&'static str>,
+    uses: Option<FrameUse>,
     set: u32,
     notes: Vec<String>,
 }
@@ -171,16 +172,12 @@ fn material_use(material: Option<&Node>) -> MaterialUse {
     // have a hundred thousand primitives).
     let normal = material
         .get("normalTexture")
-        .map(|info| ("normalTexture", Some(info)));
+        .map(|info| (FrameUse::NormalTexture, Some(info)));
     let clearcoat = extension("KHR_materials_clearcoat")
         .and_then(|clearcoat| clearcoat.get("clearcoatNormalTexture"))
-        .map(|info| ("KHR_materials_clearcoat.clearcoatNormalTexture", Some(info)));
-    let anisotropy = extension("KHR_materials_anisotropy").map(|anisotropy| {
-        (
-            "KHR_materials_anisotropy",
-            anisotropy.get("anisotropyTexture"),
-        )
-    });
+        .map(|info| (FrameUse::ClearcoatNormalTexture, Some(info)));
+    let anisotropy = extension("KHR_materials_anisotropy")
+        .map(|anisotropy| (FrameUse::Anisotropy, anisotropy.get("anisotropyTexture")));
     let mut candidates = [normal, clearcoat, anisotropy].into_iter().flatten();
     // The normal map decides the set when there is one; the others follow it.
     let Some((first, first_info)) = candidates.next() else {
@@ -490,13 +487,10 @@ mod tests {
         assert_eq!(p[2].texcoord_set, 1);
         assert_eq!(p[2].key.as_ref().unwrap().texcoord, Some(2));
         assert_eq!(p[4].key.as_ref().unwrap().topology, Topology::Strip);
-        assert_eq!(p[6].uses, Some("KHR_materials_anisotropy"));
+        assert_eq!(p[6].uses, Some(FrameUse::Anisotropy));
         // KHR_texture_transform's texCoord overrides the texture's own.
         assert_eq!(p[7].texcoord_set, 1);
-        assert_eq!(
-            p[9].uses,
-            Some("KHR_materials_clearcoat.clearcoatNormalTexture")
-        );
+        assert_eq!(p[9].uses, Some(FrameUse::ClearcoatNormalTexture));
         // Primitives 2 and 7 read the same accessors: one computation.
         assert_eq!(p[2].key, p[7].key);
         assert_ne!(p[2].key, p[4].key);
