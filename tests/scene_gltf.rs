@@ -272,6 +272,22 @@ fn analysis_warns_of_the_images_processing_would() {
     assert_eq!(analysed_counts, processed_counts);
 }
 
+/// The report holds indices in 32 bits, but a material index is reported as the file spells it,
+/// even one no material array could reach.
+#[test]
+fn a_dangling_material_index_is_reported_as_written() {
+    let mut gltf: Value =
+        serde_json::from_slice(&fixture("BoxTextured_embedded/BoxTextured.gltf")).unwrap();
+    gltf["meshes"][0]["primitives"][0]["material"] = serde_json::json!(99_999_999_999u64);
+    let bytes = serde_json::to_vec(&gltf).unwrap();
+    let done = process(&bytes, &NoResources, &SceneOptions::default()).unwrap();
+    let entry = &done.report.primitives[0];
+    assert_eq!(entry.material, Some(99_999_999_999));
+    assert_eq!(entry.action, "skipped");
+    let json: Value = serde_json::from_str(&done.report.to_json_pretty()).unwrap();
+    assert_eq!(json["primitives"][0]["material"], 99_999_999_999u64);
+}
+
 #[test]
 fn a_missing_buffer_is_named() {
     let gltf = fixture("Avocado/Avocado.gltf");

@@ -131,7 +131,7 @@ pub struct Dropped {
 
 // A scene may have a hundred thousand primitives, each with an entry held beside the scene's
 // tree at the scene layer's peak; a change that grows it should be a decision.
-const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 160);
+const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 168);
 
 /// Boxed parts keep an entry small when they are absent: a scene may have a hundred thousand
 /// primitives.
@@ -146,9 +146,10 @@ pub struct PrimitiveReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<String>)]
     pub mesh_name: Option<Arc<str>>,
+    /// As the file says, whether or not that material exists: 64 bits.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<usize>)]
-    pub material: Option<u32>,
+    pub material: Option<u64>,
     /// `generated`, `overwritten`, `audited` (existing tangents kept and compared) or `skipped`.
     #[schema(value_type = String)]
     pub action: PrimitiveAction,

@@ -684,7 +684,7 @@ fn report_entry(plan: &PrimitivePlan, shared_with: Option<[u32; 2]>) -> Primitiv
         mesh: index32(plan.mesh),
         primitive: index32(plan.primitive),
         mesh_name: plan.mesh_name.clone(),
-        material: plan.material.map(index32),
+        material: plan.material.map(|m| m as u64),
         uses: plan.uses,
         texcoord: plan.texcoord_set,
         notes: plan.notes.clone().into(),
