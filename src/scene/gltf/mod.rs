@@ -34,6 +34,7 @@ use plan::{Action, GeometryKey, PlanOptions, PrimitivePlan, Topology};
 use quantize::Snorm;
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 use tspace_json::{Node, Text};
 use tspace_tangent::{Cancel, Marks, Method, Options, UvOrigin};
 use write::{Changes, PrimitiveEdit, Ref};
@@ -114,9 +115,8 @@ fn process_and_write<'a>(
     timings.lap("load");
     SceneError::check(cancel)?;
     let root = loaded.doc.root();
-    let plans = plan::plan(root, &plan_options(options, internal));
-    let jobs = plan_jobs(&plans, options.method);
-    check_triangle_budget(root, &jobs.list, limits.max_triangles)?;
+    let (plans, jobs) = plan_jobs(root, &plan_options(options, internal), options.method);
+    check_triangle_budget(root, &jobs, limits.max_triangles)?;
     let buffers = loaded.buffer_slices();
     timings.lap("plan");
     let decoded = decode_draco(root, &plans, &jobs, &buffers, options)?;
@@ -126,7 +126,7 @@ fn process_and_write<'a>(
         buffers: &buffers,
         decoded: &decoded,
     };
-    let mut computed = compute_jobs(root, &jobs.list, data, options)?;
+    let mut computed = compute_jobs(root, &jobs, data, options)?;
     timings.lap("compute");
     SceneError::check(cancel)?;
     let painting = options.write && options.debug == Debug::Colors;
@@ -145,7 +145,7 @@ fn process_and_write<'a>(
         Vec::new()
     };
     let layouts = if options.layouts {
-        layouts(&plans, &jobs, &computed, marks)
+        layouts(&plans, &computed, marks)
     } else {
         Vec::new()
     };
@@ -197,9 +197,8 @@ fn process_and_write<'a>(
 
 /// Every job's marks: each triangle's findings and each flip vertex, by the same test the core's
 /// diagnostics count with, under the same options.
-fn mark_jobs(jobs: &Jobs, computed: &[Computed], options: &SceneOptions) -> Vec<Marks> {
-    jobs.list
-        .par_iter()
+fn mark_jobs(jobs: &[Job], computed: &[Computed], options: &SceneOptions) -> Vec<Marks> {
+    jobs.par_iter()
         .zip(computed)
         .map(|(job, computed)| {
             let core_options = Options {
@@ -219,12 +218,7 @@ fn mark_jobs(jobs: &Jobs, computed: &[Computed], options: &SceneOptions) -> Vec<
 
 /// The texture layout of every job that has texture coordinates (not the axis method's), with
 /// its marks.
-fn layouts(
-    plans: &[PrimitivePlan],
-    jobs: &Jobs,
-    computed: &[Computed],
-    marks: Vec<Marks>,
-) -> Vec<Layout> {
+fn layouts(plans: &[PrimitivePlan], computed: &[Computed], marks: Vec<Marks>) -> Vec<Layout> {
     let mut layouts: Vec<Option<Layout>> = computed
         .par_iter()
         .zip(marks)
@@ -246,8 +240,8 @@ fn layouts(
             })
         })
         .collect();
-    for (plan, job) in plans.iter().zip(&jobs.of_plan) {
-        let Some(Some(layout)) = job.and_then(|j| layouts.get_mut(j)) else {
+    for plan in plans {
+        let Some(Some(layout)) = plan.job.and_then(|j| layouts.get_mut(j)) else {
             continue;
         };
         if layout.primitives.is_empty() {
@@ -290,38 +284,32 @@ impl Job {
     }
 }
 
-/// A scene's jobs, in the order primitives first need them, and the job each plan uses.
-struct Jobs {
-    list: Vec<Job>,
-    /// Per plan: its job, or `None` when it computes nothing.
-    of_plan: Vec<Option<usize>>,
-}
-
-fn plan_jobs(plans: &[PrimitivePlan], method: Method) -> Jobs {
-    let mut jobs = Jobs {
-        list: Vec::new(),
-        of_plan: vec![None; plans.len()],
-    };
+/// Plans every primitive and numbers the computations they need: primitives with the same
+/// geometry under the same method share one job, in the order primitives first need them.
+fn plan_jobs(root: &Node, options: &PlanOptions, method: Method) -> (Vec<PrimitivePlan>, Vec<Job>) {
+    let mut jobs: Vec<Job> = Vec::new();
     let mut index: HashMap<(GeometryKey, Method), usize> = HashMap::new();
-    for (p, plan) in plans.iter().enumerate() {
-        let Some(key) = &plan.key else { continue };
+    let plans = plan::plan(root, options, |plan, key| {
         // Audits always compare with MikkTSpace, what the existing tangents' bakers used.
         let method = match plan.action {
             Action::Audit => Method::MikkTSpace,
             _ => method,
         };
-        let next = jobs.list.len();
-        let job = *index.entry((key.clone(), method)).or_insert(next);
-        if job == next {
-            let key = key.clone();
-            let first = [plan.mesh, plan.primitive];
-            jobs.list.push(Job { key, method, first });
+        let next = jobs.len();
+        match index.entry((key, method)) {
+            Entry::Occupied(job) => *job.get(),
+            Entry::Vacant(slot) => {
+                let key = slot.key().0.clone();
+                slot.insert(next);
+                let first = [plan.mesh, plan.primitive];
+                jobs.push(Job { key, method, first });
+                next
+            }
         }
-        jobs.of_plan[p] = Some(job);
-    }
+    });
     // Kept to the end, beside one plan per primitive: no room to spare.
-    jobs.list.shrink_to_fit();
-    jobs
+    jobs.shrink_to_fit();
+    (plans, jobs)
 }
 
 /// Decodes the Draco stream of every primitive a job reads whose accessors have no data of their
@@ -330,21 +318,20 @@ fn plan_jobs(plans: &[PrimitivePlan], method: Method) -> Jobs {
 fn decode_draco(
     root: &Node,
     plans: &[PrimitivePlan],
-    jobs: &Jobs,
+    jobs: &[Job],
     buffers: &[&[u8]],
     options: &SceneOptions,
 ) -> Result<DecodedAccessors, SceneError> {
     let mut seen = std::collections::HashSet::new();
     let wanted: Vec<(&Node, String)> = plans
         .iter()
-        .zip(&jobs.of_plan)
-        .filter(|(_, job)| job.is_some())
-        .filter_map(|(plan, _)| {
+        .filter_map(|plan| {
+            let key = &jobs.get(plan.job?)?.key;
             let primitive = primitive_node(root, plan.mesh, plan.primitive)?;
             let stream = draco::extension(primitive)?
                 .get("bufferView")
                 .and_then(Node::as_u64);
-            let key = (stream, plan.key.clone());
+            let key = (stream, key);
             (draco::needs_decoding(root, primitive) && seen.insert(key)).then(|| {
                 let path = format!("meshes[{}].primitives[{}]", plan.mesh, plan.primitive);
                 (primitive, path)
@@ -488,7 +475,7 @@ struct Scene<'s> {
 fn report_primitives(
     scene: &Scene<'_>,
     plans: &[PrimitivePlan],
-    jobs: &Jobs,
+    jobs: &[Job],
     computed: Vec<Computed>,
     report: &mut Report,
 ) -> Result<Edits, SceneError> {
@@ -497,8 +484,8 @@ fn report_primitives(
     // Per job, the first and the last plan that use it: the first's entry carries the job's
     // findings (the others name it in `shared_with`), and after the last its computation goes.
     let mut plans_of_job: Vec<Option<(usize, usize)>> = vec![None; computed.len()];
-    for (p, job) in jobs.of_plan.iter().enumerate() {
-        if let Some(span) = job.and_then(|j| plans_of_job.get_mut(j)) {
+    for (p, plan) in plans.iter().enumerate() {
+        if let Some(span) = plan.job.and_then(|j| plans_of_job.get_mut(j)) {
             span.get_or_insert((p, p)).1 = p;
         }
     }
@@ -506,7 +493,7 @@ fn report_primitives(
     // (capacity no job uses is never touched). A job writes its tangents, and its generated
     // normals and debug colours when it has them; only remapped attributes are left to grow
     // the lists.
-    edits.job_refs.reserve_exact(jobs.list.len());
+    edits.job_refs.reserve_exact(jobs.len());
     let added: usize = computed
         .iter()
         .enumerate()
@@ -518,8 +505,9 @@ fn report_primitives(
     edits.changes.reserve(added, plans.len());
     report.primitives.reserve_exact(plans.len());
     let mut computed: Vec<Option<Computed>> = computed.into_iter().map(Some).collect();
-    for (p, (plan, &job)) in plans.iter().zip(&jobs.of_plan).enumerate() {
+    for (p, plan) in plans.iter().enumerate() {
         SceneError::check(scene.cancel)?;
+        let job = plan.job;
         let span = job.and_then(|j| plans_of_job.get(j).copied().flatten());
         let shared_with = span
             .map(|(first, _)| first)
@@ -528,7 +516,7 @@ fn report_primitives(
             .map(|first| [index32(first.mesh), index32(first.primitive)]);
         report_primitive(
             scene,
-            (plan, job, shared_with),
+            (plan, jobs, shared_with),
             &computed,
             &mut edits,
             report,
@@ -547,14 +535,16 @@ fn report_primitives(
 /// another), and its edit when it gets tangents.
 fn report_primitive(
     scene: &Scene<'_>,
-    (plan, job, shared_with): (&PrimitivePlan, Option<usize>, Option<[u32; 2]>),
+    (plan, jobs, shared_with): (&PrimitivePlan, &[Job], Option<[u32; 2]>),
     computed: &[Option<Computed>],
     edits: &mut Edits,
     report: &mut Report,
 ) -> Result<(), SceneError> {
     report.summary.primitives += 1;
     let mut entry = report_entry(plan, shared_with);
-    let computation = job.and_then(|j| Some((j, computed.get(j)?.as_ref()?)));
+    let computation = plan
+        .job
+        .and_then(|j| Some((j, &jobs.get(j)?.key, computed.get(j)?.as_ref()?)));
     match (&plan.action, computation) {
         (Action::Skip(reason), _) => {
             report.summary.skipped += 1;
@@ -562,13 +552,11 @@ fn report_primitive(
             entry.reason = Some(reason.code());
             entry.message = Some(reason.message().into_boxed_str());
         }
-        (Action::Audit, Some((j, c))) => {
+        (Action::Audit, Some((j, key, c))) => {
             report.summary.audited += 1;
             audit_primitive(scene, plan, c, &mut entry, report)?;
-            if let (Some(key), Some(primitive)) = (
-                &plan.key,
-                primitive_node(scene.root, plan.mesh, plan.primitive),
-            ) && let Some(edit) = edits.paint_kept(scene, primitive, key.topology, j, c)?
+            if let Some(primitive) = primitive_node(scene.root, plan.mesh, plan.primitive)
+                && let Some(edit) = edits.paint_kept(scene, primitive, key.topology, j, c)?
             {
                 edits
                     .changes
@@ -576,9 +564,9 @@ fn report_primitive(
                     .insert((plan.mesh, plan.primitive), edit);
             }
         }
-        (Action::Generate, Some((j, c))) => {
+        (Action::Generate, Some((j, key, c))) => {
             report.summary.generated += 1;
-            if !generate_primitive(scene, plan, j, c, &mut entry, edits)? {
+            if !generate_primitive(scene, plan, (j, key), c, &mut entry, edits)? {
                 return Ok(());
             }
         }
@@ -741,7 +729,7 @@ fn audit_primitive(
 fn generate_primitive(
     scene: &Scene<'_>,
     plan: &PrimitivePlan,
-    job: usize,
+    (job, key): (usize, &GeometryKey),
     c: &Computed,
     entry: &mut PrimitiveReport,
     edits: &mut Edits,
@@ -752,9 +740,6 @@ fn generate_primitive(
         PrimitiveAction::Generated
     };
     add_diagnostics(entry, c);
-    let Some(key) = &plan.key else {
-        return Ok(false);
-    };
     let Some(primitive) = primitive_node(scene.root, plan.mesh, plan.primitive) else {
         return Ok(false);
     };

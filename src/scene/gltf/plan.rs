@@ -121,8 +121,10 @@ pub struct PrimitivePlan {
     pub uses: Option<FrameUse>,
     pub had_tangents: bool,
     pub action: Action,
-    /// Set for [`Action::Generate`] and [`Action::Audit`].
-    pub key: Option<GeometryKey>,
+    /// For [`Action::Generate`] and [`Action::Audit`]: the computation it joins, as the caller
+    /// of [`plan`] numbered its geometry's key. The key itself is not kept: most primitives of
+    /// a large scene share theirs, and the caller's list holds each once.
+    pub job: Option<usize>,
     /// Notes for the report (a texture transform on the normal map, conflicting UV sets).
     pub notes: Vec<String>,
 }
@@ -360,13 +362,12 @@ fn geometry_key(
 }
 
 fn plan_primitive(
-    mesh: usize,
-    mesh_name: &Option<Arc<str>>,
+    (mesh, mesh_name): (usize, &Option<Arc<str>>),
     index: usize,
     primitive: &Node,
     materials: &[Node],
     options: &PlanOptions,
-) -> PrimitivePlan {
+) -> (PrimitivePlan, Option<GeometryKey>) {
     let material = accessor_index(primitive.get("material"));
     let usage = frame_use(primitive, material, materials);
     let mode = primitive.get("mode").and_then(Node::as_u64).unwrap_or(4);
@@ -380,7 +381,7 @@ fn plan_primitive(
     };
     let action = decide(&facts, &usage, options);
     let key = geometry_key(primitive, &facts, &action, options);
-    PrimitivePlan {
+    let plan = PrimitivePlan {
         mesh,
         primitive: index,
         mesh_name: mesh_name.clone(),
@@ -389,13 +390,19 @@ fn plan_primitive(
         uses: usage.uses,
         had_tangents: facts.had_tangents,
         action,
-        key,
+        job: None,
         notes: usage.notes,
-    }
+    };
+    (plan, key)
 }
 
-/// Decides every primitive of the document.
-pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
+/// Decides every primitive of the document. Each primitive that computes anything hands its
+/// geometry's key to `job_of`, which says which computation it joins.
+pub fn plan(
+    root: &Node,
+    options: &PlanOptions,
+    mut job_of: impl FnMut(&PrimitivePlan, GeometryKey) -> usize,
+) -> Vec<PrimitivePlan> {
     let materials = array(root, "materials");
     // One plan per primitive, allocated once: growing by doubling would leave up to as much
     // again unused, and the plans stay until the scene is written.
@@ -407,9 +414,15 @@ pub fn plan(root: &Node, options: &PlanOptions) -> Vec<PrimitivePlan> {
     for (mesh_index, mesh) in array(root, "meshes").iter().enumerate() {
         let mesh_name = mesh.get("name").and_then(Node::as_str).map(Arc::from);
         for (index, primitive) in array(mesh, "primitives").iter().enumerate() {
-            plans.push(plan_primitive(
-                mesh_index, &mesh_name, index, primitive, materials, options,
-            ));
+            let (mut plan, key) = plan_primitive(
+                (mesh_index, &mesh_name),
+                index,
+                primitive,
+                materials,
+                options,
+            );
+            plan.job = key.map(|key| job_of(&plan, key));
+            plans.push(plan);
         }
     }
     plans
@@ -420,9 +433,21 @@ mod tests {
     use super::*;
     use tspace_json::Document;
 
-    fn plans(json: &str, options: PlanOptions) -> Vec<PrimitivePlan> {
+    /// The plans, and each one's key (`None` where it computes nothing).
+    fn plans(json: &str, options: PlanOptions) -> Vec<(PrimitivePlan, Option<GeometryKey>)> {
         let doc = Document::parse(json.as_bytes()).unwrap();
-        plan(doc.root(), &options)
+        let mut keys = Vec::new();
+        let plans = plan(doc.root(), &options, |_, key| {
+            keys.push(key);
+            keys.len() - 1
+        });
+        plans
+            .into_iter()
+            .map(|p| {
+                let key = p.job.map(|j| keys[j].clone());
+                (p, key)
+            })
+            .collect()
     }
 
     const SCENE: &str = r#"{
@@ -465,7 +490,7 @@ mod tests {
     #[test]
     fn decisions_follow_the_material() {
         let p = plans(SCENE, PlanOptions::default());
-        let actions: Vec<_> = p.iter().map(|p| p.action.clone()).collect();
+        let actions: Vec<_> = p.iter().map(|(p, _)| p.action.clone()).collect();
         assert_eq!(
             actions,
             vec![
@@ -484,16 +509,22 @@ mod tests {
                 Action::Generate,
             ]
         );
-        assert_eq!(p[2].texcoord_set, 1);
-        assert_eq!(p[2].key.as_ref().unwrap().texcoord, Some(2));
-        assert_eq!(p[4].key.as_ref().unwrap().topology, Topology::Strip);
-        assert_eq!(p[6].uses, Some(FrameUse::Anisotropy));
+        assert_eq!(p[2].0.texcoord_set, 1);
+        assert_eq!(p[2].1.as_ref().unwrap().texcoord, Some(2));
+        assert_eq!(p[4].1.as_ref().unwrap().topology, Topology::Strip);
+        assert_eq!(p[6].0.uses, Some(FrameUse::Anisotropy));
         // KHR_texture_transform's texCoord overrides the texture's own.
-        assert_eq!(p[7].texcoord_set, 1);
-        assert_eq!(p[9].uses, Some(FrameUse::ClearcoatNormalTexture));
+        assert_eq!(p[7].0.texcoord_set, 1);
+        assert_eq!(p[9].0.uses, Some(FrameUse::ClearcoatNormalTexture));
         // Primitives 2 and 7 read the same accessors: one computation.
-        assert_eq!(p[2].key, p[7].key);
-        assert_ne!(p[2].key, p[4].key);
+        assert_eq!(p[2].1, p[7].1);
+        assert_ne!(p[2].1, p[4].1);
+        // Only the primitives that compute anything have a key, and each its own number here.
+        for (plan, key) in &p {
+            let computes = matches!(plan.action, Action::Generate | Action::Audit);
+            assert_eq!(plan.job.is_some(), computes);
+            assert_eq!(key.is_some(), computes);
+        }
     }
 
     #[test]
@@ -506,9 +537,9 @@ mod tests {
                 ..PlanOptions::default()
             },
         );
-        assert_eq!(p[0].action, Action::Generate);
-        assert_eq!(p[1].action, Action::Generate);
-        assert_eq!(p[6].action, Action::Generate);
+        assert_eq!(p[0].0.action, Action::Generate);
+        assert_eq!(p[1].0.action, Action::Generate);
+        assert_eq!(p[6].0.action, Action::Generate);
         let axis = plans(
             SCENE,
             PlanOptions {
@@ -516,7 +547,7 @@ mod tests {
                 ..PlanOptions::default()
             },
         );
-        assert_eq!(axis[3].action, Action::Generate);
-        assert_eq!(axis[3].key.as_ref().unwrap().texcoord, None);
+        assert_eq!(axis[3].0.action, Action::Generate);
+        assert_eq!(axis[3].1.as_ref().unwrap().texcoord, None);
     }
 }
