@@ -126,6 +126,9 @@ pub struct Number(Text);
 const _: () = assert!(std::mem::size_of::<Text>() == 16);
 const _: () = assert!(std::mem::size_of::<Node>() == 32);
 const _: () = assert!(std::mem::size_of::<Member>() == 48);
+// An editor may hold one of each per edited object, a hundred thousand of them.
+const _: () = assert!(std::mem::size_of::<ObjectEdit<'static>>() == 24);
+const _: () = assert!(std::mem::size_of::<(Text, NewValue)>() == 32);
 
 /// How many bytes of text a [`Text`] holds without an allocation of its own.
 const INLINE: usize = 14;
@@ -1368,19 +1371,76 @@ pub struct Editor<'d, 'a> {
 struct ObjectEdit<'d> {
     object: &'d Node,
     /// Per original member, whether it is removed; empty while none is.
-    removed: Vec<bool>,
-    added: Vec<(Text, NewValue)>,
+    removed: Thin<bool>,
+    added: Thin<(Text, NewValue)>,
 }
 
 #[derive(Debug)]
 enum NewValue {
     Text(Text),
-    /// An array member created by [`Editor::push_to_array_member`]; grows with each push. Its
-    /// elements' texts, separated by commas.
-    Array {
-        items: String,
-        count: usize,
-    },
+    /// An array member created by [`Editor::push_to_array_member`]; grows with each push.
+    /// Boxed, so that a member with a short text value takes no more room than its text.
+    Array(Box<NewArray>),
+}
+
+#[derive(Debug)]
+struct NewArray {
+    /// The elements' texts, separated by commas.
+    items: String,
+    count: usize,
+}
+
+/// A short list held as one pointer, null while the list is empty: an editor may hold a
+/// hundred thousand edited objects, nearly every one gaining a single member and losing none,
+/// where two `Vec`s would take 48 bytes each. Pushing reallocates; these lists stay short.
+#[derive(Debug)]
+struct Thin<T>(Option<Box<Box<[T]>>>);
+
+impl<T> Default for Thin<T> {
+    fn default() -> Self {
+        Thin(None)
+    }
+}
+
+impl<T> Thin<T> {
+    fn from_vec(items: Vec<T>) -> Self {
+        Thin((!items.is_empty()).then(|| Box::new(items.into_boxed_slice())))
+    }
+
+    fn take_vec(&mut self) -> Vec<T> {
+        self.0
+            .take()
+            .map_or_else(Vec::new, |items| items.into_vec())
+    }
+
+    fn push(&mut self, item: T) {
+        let mut items = self.take_vec();
+        items.reserve_exact(1);
+        items.push(item);
+        *self = Thin::from_vec(items);
+    }
+
+    fn remove(&mut self, i: usize) {
+        let mut items = self.take_vec();
+        if i < items.len() {
+            items.remove(i);
+        }
+        *self = Thin::from_vec(items);
+    }
+}
+
+impl<T> std::ops::Deref for Thin<T> {
+    type Target = [T];
+
+    fn deref(&self) -> &[T] {
+        self.0.as_deref().map_or(&[], |items| items)
+    }
+}
+
+impl<T> std::ops::DerefMut for Thin<T> {
+    fn deref_mut(&mut self) -> &mut [T] {
+        self.0.as_deref_mut().map_or(&mut [], |items| items)
+    }
 }
 
 /// One array's edits.
@@ -1390,7 +1450,7 @@ struct ArrayEdit {
     /// Per original element: its span.
     elements: Box<[(u32, u32)]>,
     /// Per original element, whether it is removed; empty while none is.
-    removed: Vec<bool>,
+    removed: Thin<bool>,
     /// The added elements' texts, each after the comma and whitespace that separate it from
     /// the one before: one text for all, which rendering takes as it is.
     added: String,
@@ -1407,12 +1467,12 @@ fn is_removed(removed: &[bool], i: usize) -> bool {
 }
 
 /// Marks item `i` of `n` removed; false when there is no such item.
-fn mark_removed(removed: &mut Vec<bool>, n: usize, i: usize) -> bool {
+fn mark_removed(removed: &mut Thin<bool>, n: usize, i: usize) -> bool {
     if i >= n {
         return false;
     }
     if removed.is_empty() {
-        *removed = vec![false; n];
+        *removed = Thin::from_vec(vec![false; n]);
     }
     if let Some(r) = removed.get_mut(i) {
         *r = true;
@@ -1535,7 +1595,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             .or_insert_with(|| ArrayEdit {
                 open: array.span().start,
                 elements: elements.iter().map(|e| (e.start, e.end)).collect(),
-                removed: Vec::new(),
+                removed: Thin::default(),
                 added: String::new(),
                 added_count: 0,
                 first_separator: 0,
@@ -1555,11 +1615,11 @@ impl<'d, 'a> Editor<'d, 'a> {
         let edit = self.object_edit(object)?;
         if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
             return match value {
-                NewValue::Array { items, count } => {
-                    items.push(',');
-                    items.push_str(&text);
-                    *count += 1;
-                    Ok(*count - 1)
+                NewValue::Array(array) => {
+                    array.items.push(',');
+                    array.items.push_str(&text);
+                    array.count += 1;
+                    Ok(array.count - 1)
                 }
                 NewValue::Text(_) => Err(EditError::MemberExists { key: key.into() }),
             };
@@ -1572,10 +1632,10 @@ impl<'d, 'a> Editor<'d, 'a> {
                 self.append_checked_element(&member.value, &text)
             }
             _ => {
-                let items = NewValue::Array {
+                let items = NewValue::Array(Box::new(NewArray {
                     items: text,
                     count: 1,
-                };
+                }));
                 edit.add(key, items);
                 Ok(0)
             }
@@ -1611,8 +1671,8 @@ impl<'d, 'a> Editor<'d, 'a> {
             }
             let edit = ObjectEdit {
                 object,
-                removed: Vec::new(),
-                added: Vec::new(),
+                removed: Thin::default(),
+                added: Thin::default(),
             };
             self.objects.insert(open, edit);
         }
@@ -1834,9 +1894,8 @@ impl ObjectEdit<'_> {
         original || self.added.iter().any(|(k, _)| k == key)
     }
 
-    /// Adds a member; the list is kept to its length (most edited objects gain one member).
+    /// Adds a member.
     fn add(&mut self, key: &str, value: NewValue) {
-        self.added.reserve_exact(1);
         self.added.push((Text::new(key), value));
     }
 
@@ -1885,13 +1944,13 @@ impl ObjectEdit<'_> {
             .map(|(key, value)| {
                 let value = match value {
                     NewValue::Text(t) => t.as_bytes().len(),
-                    NewValue::Array { items, .. } => items.len() + 2,
+                    NewValue::Array(array) => array.items.len() + 2,
                 };
                 1 + lead.len() + key.as_bytes().len() + 2 + colon.len() + value
             })
             .sum();
         let mut text = String::with_capacity(len);
-        for (key, value) in &self.added {
+        for (key, value) in self.added.iter() {
             if comma {
                 text.push(',');
                 text.push_str(lead);
@@ -1901,9 +1960,9 @@ impl ObjectEdit<'_> {
             text.push_str(colon);
             match value {
                 NewValue::Text(t) => text.push_str(t),
-                NewValue::Array { items, .. } => {
+                NewValue::Array(array) => {
                     text.push('[');
-                    text.push_str(items);
+                    text.push_str(&array.items);
                     text.push(']');
                 }
             }

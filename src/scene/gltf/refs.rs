@@ -36,14 +36,30 @@ pub const KNOWN_EXTENSIONS: &[&str] = &[
     "EXT_lights_image_based",
 ];
 
-/// Who holds a reference.
+/// Who holds a reference. Indices in 32 bits: each counts elements of an array in a JSON text,
+/// which is under 4 GiB, and a scene of many small primitives holds several references each.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Owner {
     /// `meshes[mesh].primitives[primitive]` (attributes, indices, targets, extensions).
-    Primitive(usize, usize),
-    Accessor(usize),
-    Image(usize),
+    Primitive(u32, u32),
+    Accessor(u32),
+    Image(u32),
     Other,
+}
+
+impl Owner {
+    /// For a primitive, its `(mesh, primitive)`, as the edits are keyed.
+    pub fn primitive(self) -> Option<(usize, usize)> {
+        match self {
+            Owner::Primitive(m, p) => Some((m as usize, p as usize)),
+            _ => None,
+        }
+    }
+}
+
+/// An array position as an [`Owner`] holds it (see there why it fits).
+fn position(i: usize) -> u32 {
+    u32::try_from(i).unwrap_or(u32::MAX)
 }
 
 fn items(node: Option<&Node>) -> &[Node] {
@@ -64,8 +80,14 @@ fn index(node: Option<&Node>) -> Option<(&Node, usize)> {
     Some((node, i))
 }
 
-/// A reference: its owner, the number's node, and the index it holds.
-pub type Ref<'d> = (Owner, &'d Node, usize);
+/// A reference: its owner and the number's node. The index it holds is read from the node when
+/// needed ([`held`]) rather than kept beside it.
+pub type Ref<'d> = (Owner, &'d Node);
+
+/// The index a reference's node holds; every listed node holds one.
+pub fn held(node: &Node) -> usize {
+    index(Some(node)).map_or(usize::MAX, |(_, i)| i)
+}
 
 /// The references `visit` reports, in a list of exactly their number: a scene of many small
 /// primitives has several each, and a list grown by doubling held up to twice the room, at
@@ -86,7 +108,7 @@ pub fn accessor_refs(root: &Node) -> Vec<Ref<'_>> {
 fn visit_accessor_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (m, mesh) in items(root.get("meshes")).iter().enumerate() {
         for (p, primitive) in items(mesh.get("primitives")).iter().enumerate() {
-            let owner = Owner::Primitive(m, p);
+            let owner = Owner::Primitive(position(m), position(p));
             let nodes = values(primitive.get("attributes"))
                 .map(Some)
                 .chain(std::iter::once(primitive.get("indices")))
@@ -96,22 +118,22 @@ fn visit_accessor_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
                         .flat_map(|t| values(Some(t)).map(Some)),
                 );
             for node in nodes {
-                if let Some((n, i)) = index(node) {
-                    out((owner, n, i));
+                if let Some((n, _)) = index(node) {
+                    out((owner, n));
                 }
             }
         }
     }
     for skin in items(root.get("skins")) {
-        if let Some((n, i)) = index(skin.get("inverseBindMatrices")) {
-            out((Owner::Other, n, i));
+        if let Some((n, _)) = index(skin.get("inverseBindMatrices")) {
+            out((Owner::Other, n));
         }
     }
     for animation in items(root.get("animations")) {
         for sampler in items(animation.get("samplers")) {
             for key in ["input", "output"] {
-                if let Some((n, i)) = index(sampler.get(key)) {
-                    out((Owner::Other, n, i));
+                if let Some((n, _)) = index(sampler.get(key)) {
+                    out((Owner::Other, n));
                 }
             }
         }
@@ -122,8 +144,8 @@ fn visit_accessor_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
             .and_then(|e| e.get("EXT_mesh_gpu_instancing"))
             .and_then(|e| e.get("attributes"));
         for v in values(instancing) {
-            if let Some((n, i)) = index(Some(v)) {
-                out((Owner::Other, n, i));
+            if let Some((n, _)) = index(Some(v)) {
+                out((Owner::Other, n));
             }
         }
     }
@@ -136,21 +158,21 @@ pub fn view_refs(root: &Node) -> Vec<Ref<'_>> {
 
 fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (a, accessor) in items(root.get("accessors")).iter().enumerate() {
-        let owner = Owner::Accessor(a);
-        if let Some((n, i)) = index(accessor.get("bufferView")) {
-            out((owner, n, i));
+        let owner = Owner::Accessor(position(a));
+        if let Some((n, _)) = index(accessor.get("bufferView")) {
+            out((owner, n));
         }
         if let Some(sparse) = accessor.get("sparse") {
             for part in ["indices", "values"] {
-                if let Some((n, i)) = index(sparse.get(part).and_then(|p| p.get("bufferView"))) {
-                    out((owner, n, i));
+                if let Some((n, _)) = index(sparse.get(part).and_then(|p| p.get("bufferView"))) {
+                    out((owner, n));
                 }
             }
         }
     }
     for (i, image) in items(root.get("images")).iter().enumerate() {
-        if let Some((n, v)) = index(image.get("bufferView")) {
-            out((Owner::Image(i), n, v));
+        if let Some((n, _)) = index(image.get("bufferView")) {
+            out((Owner::Image(position(i)), n));
         }
     }
     for (m, mesh) in items(root.get("meshes")).iter().enumerate() {
@@ -158,8 +180,8 @@ fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
             let draco = primitive
                 .get("extensions")
                 .and_then(|e| e.get("KHR_draco_mesh_compression"));
-            if let Some((n, v)) = index(draco.and_then(|d| d.get("bufferView"))) {
-                out((Owner::Primitive(m, p), n, v));
+            if let Some((n, _)) = index(draco.and_then(|d| d.get("bufferView"))) {
+                out((Owner::Primitive(position(m), position(p)), n));
             }
         }
     }
@@ -198,9 +220,12 @@ mod tests {
         .unwrap();
         let found = accessor_refs(doc.root());
         assert_eq!(found.capacity(), found.len());
-        let accessors: Vec<usize> = found.iter().map(|r| r.2).collect();
+        let accessors: Vec<usize> = found.iter().map(|r| held(r.1)).collect();
         assert_eq!(accessors, vec![0, 1, 2, 3, 5, 6, 7, 8]);
-        let views: Vec<(Owner, usize)> = view_refs(doc.root()).iter().map(|r| (r.0, r.2)).collect();
+        let views: Vec<(Owner, usize)> = view_refs(doc.root())
+            .iter()
+            .map(|r| (r.0, held(r.1)))
+            .collect();
         assert_eq!(
             views,
             vec![

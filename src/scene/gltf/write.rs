@@ -694,8 +694,8 @@ fn edit<'a, 'l>(
 /// Every index reference to an accessor or a buffer view in the input, found once: the first
 /// phases read them to find orphans, the editing phases renumber them.
 struct References<'d> {
-    accessors: Vec<(Owner, &'d Node, usize)>,
-    views: Vec<(Owner, &'d Node, usize)>,
+    accessors: Vec<refs::Ref<'d>>,
+    views: Vec<refs::Ref<'d>>,
 }
 
 impl<'d> References<'d> {
@@ -731,23 +731,22 @@ impl Orphans {
 }
 
 fn is_edited(owner: Owner, changes: &Changes) -> bool {
-    matches!(owner, Owner::Primitive(m, p) if changes.primitives.contains_key(&(m, p)))
+    owner
+        .primitive()
+        .is_some_and(|key| changes.primitives.contains_key(&key))
 }
 
 /// Referenced before, and after the edits by neither an unedited owner nor an edited
 /// primitive's final members.
-fn orphan_accessors(
-    root: &Node,
-    references: &[(Owner, &Node, usize)],
-    changes: &Changes,
-) -> Vec<bool> {
+fn orphan_accessors(root: &Node, references: &[refs::Ref<'_>], changes: &Changes) -> Vec<bool> {
     let count = root
         .get("accessors")
         .and_then(Node::as_array)
         .map_or(0, <[Node]>::len);
     let mut referenced_before = vec![false; count];
     let mut referenced_after = vec![false; count];
-    for &(owner, _, i) in references {
+    for &(owner, node) in references {
+        let i = refs::held(node);
         if let Some(r) = referenced_before.get_mut(i) {
             *r = true;
         }
@@ -775,7 +774,7 @@ fn orphan_accessors(
 /// the edits remove.
 fn orphan_views(
     root: &Node,
-    references: &[(Owner, &Node, usize)],
+    references: &[refs::Ref<'_>],
     changes: &Changes,
     orphan_accessor: &[bool],
 ) -> Vec<bool> {
@@ -785,7 +784,8 @@ fn orphan_views(
         .map_or(0, <[Node]>::len);
     let mut view_before = vec![false; count];
     let mut view_after = vec![false; count];
-    for &(owner, _, v) in references {
+    for &(owner, node) in references {
+        let v = refs::held(node);
         if let Some(b) = view_before.get_mut(v) {
             *b = true;
         }
@@ -806,10 +806,10 @@ fn orphan_views(
 /// Draco extension is removed.
 fn reference_dies(owner: Owner, changes: &Changes, orphan_accessor: &[bool]) -> bool {
     match owner {
-        Owner::Accessor(a) => orphan_accessor.get(a).copied().unwrap_or(false),
+        Owner::Accessor(a) => orphan_accessor.get(a as usize).copied().unwrap_or(false),
         Owner::Primitive(m, p) => changes
             .primitives
-            .get(&(m, p))
+            .get(&(m as usize, p as usize))
             .is_some_and(|e| e.remove_draco),
         _ => false,
     }
@@ -1243,12 +1243,13 @@ fn renumber_view_refs(
     numbering: &Numbering,
     changes: &Changes,
 ) -> Result<(), SceneError> {
-    for &(owner, node, v) in &references.views {
+    for &(owner, node) in &references.views {
+        let v = refs::held(node);
         let alive = match owner {
-            Owner::Accessor(a) => numbering.keeps_accessor(a),
+            Owner::Accessor(a) => numbering.keeps_accessor(a as usize),
             Owner::Primitive(m, p) => !changes
                 .primitives
-                .get(&(m, p))
+                .get(&(m as usize, p as usize))
                 .is_some_and(|e| e.remove_draco),
             _ => true,
         };
@@ -1378,10 +1379,11 @@ fn renumber_accessor_refs(
     if !numbering.dropping {
         return Ok(());
     }
-    for &(owner, node, i) in &references.accessors {
+    for &(owner, node) in &references.accessors {
         if is_edited(owner, changes) {
             continue;
         }
+        let i = refs::held(node);
         let target = numbering.accessor(Ref::Old(i));
         if target != i {
             editor
@@ -2095,11 +2097,11 @@ fn plain_view_shape(root: &Node, v: usize, view: &Node) -> Shape {
     let mut other = false;
     let mut triangles = true;
     let is_reader = |n: &Node| n.as_u64().is_some_and(|i| readers.contains(&(i as usize)));
-    for (owner, node, _) in refs::accessor_refs(root) {
+    for (owner, node) in refs::accessor_refs(root) {
         if !is_reader(node) {
             continue;
         }
-        let Owner::Primitive(m, p) = owner else {
+        let Some((m, p)) = owner.primitive() else {
             other = true;
             continue;
         };
