@@ -1095,16 +1095,13 @@ impl Edits {
             .get("targets")
             .and_then(Node::as_array)
             .unwrap_or(&[]);
-        for (t, target) in targets.iter().enumerate() {
-            edit.targets.push(self.edit_target(
-                scene,
-                job,
-                c,
-                (t, target),
-                keeps,
-                snorm.map(|s| s.snorm),
-            )?);
-        }
+        edit.targets = targets
+            .iter()
+            .enumerate()
+            .map(|(t, target)| {
+                self.edit_target(scene, job, c, (t, target), keeps, snorm.map(|s| s.snorm))
+            })
+            .collect::<Result<_, _>>()?;
         self.paint(scene, job, &mut edit);
         // Kept until the scene is written, one per primitive: no room to spare.
         edit.attributes.shrink_to_fit();
@@ -1138,10 +1135,10 @@ impl Edits {
                 .get("targets")
                 .and_then(Node::as_array)
                 .unwrap_or(&[]);
-            for target in targets {
-                let set = self.remap_members(scene, job, c, Some(target), |_| false)?;
-                edit.targets.push(set);
-            }
+            edit.targets = targets
+                .iter()
+                .map(|target| self.remap_members(scene, job, c, Some(target), |_| false))
+                .collect::<Result<_, _>>()?;
         }
         self.add_vertex_order(&mut edit, job, c, keeps, topology);
         self.paint(scene, job, &mut edit);

@@ -70,22 +70,30 @@ pub struct PrimitiveEdit {
     pub indices: Option<Ref>,
     /// Set `mode` to TRIANGLES (a strip or fan was unrolled).
     pub to_triangle_list: bool,
-    /// Per morph target: members to set.
-    pub targets: Vec<Vec<(Text, Ref)>>,
+    /// Per morph target: members to set. Boxed to its length, and empty for most primitives.
+    pub targets: Box<[Vec<(Text, Ref)>]>,
     /// Remove `KHR_draco_mesh_compression`: its compressed data no longer matches.
     pub remove_draco: bool,
-    /// Point `material` at this one of [`Changes::materials`].
-    pub material: Option<usize>,
+    /// Point `material` at this one of [`Changes::materials`] (tspace adds one at most).
+    pub material: Option<u32>,
 }
 
 /// The edited primitives' edits by `(mesh, primitive)`, in that order: a list, since edits come
-/// in that order, without a map's room per entry (a scene may edit a hundred thousand).
+/// in that order, without a map's room per entry (a scene may edit a hundred thousand). Keys in
+/// 32 bits: positions in arrays of a JSON text, which is under 4 GiB.
 #[derive(Default)]
-pub struct PrimitiveEdits(Vec<((usize, usize), PrimitiveEdit)>);
+pub struct PrimitiveEdits(Vec<((u32, u32), PrimitiveEdit)>);
+
+// One per edited primitive; a change that grows it should be a decision.
+const _: () = assert!(std::mem::size_of::<((u32, u32), PrimitiveEdit)>() == 80);
 
 impl PrimitiveEdits {
-    fn position(&self, key: &(usize, usize)) -> Result<usize, usize> {
-        self.0.binary_search_by(|(k, _)| k.cmp(key))
+    fn position(&self, &(mesh, primitive): &(usize, usize)) -> Result<usize, usize> {
+        let key = (
+            u32::try_from(mesh).unwrap_or(u32::MAX),
+            u32::try_from(primitive).unwrap_or(u32::MAX),
+        );
+        self.0.binary_search_by(|(k, _)| k.cmp(&key))
     }
 
     pub fn get(&self, key: &(usize, usize)) -> Option<&PrimitiveEdit> {
@@ -97,15 +105,19 @@ impl PrimitiveEdits {
         self.position(key).is_ok()
     }
 
-    /// Sets the edit of `key`, replacing any it had.
+    /// Sets the edit of `key`, replacing any it had. A key past 32 bits names no primitive
+    /// of a document tspace reads, and its edit is dropped.
     pub fn insert(&mut self, key: (usize, usize), edit: PrimitiveEdit) {
+        let (Ok(mesh), Ok(primitive)) = (u32::try_from(key.0), u32::try_from(key.1)) else {
+            return;
+        };
         match self.position(&key) {
             Ok(i) => {
                 if let Some(slot) = self.0.get_mut(i) {
                     slot.1 = edit;
                 }
             }
-            Err(i) => self.0.insert(i, (key, edit)),
+            Err(i) => self.0.insert(i, ((mesh, primitive), edit)),
         }
     }
 
@@ -117,8 +129,10 @@ impl PrimitiveEdits {
         self.0.iter().map(|(_, edit)| edit)
     }
 
-    pub fn iter(&self) -> impl Iterator<Item = (&(usize, usize), &PrimitiveEdit)> {
-        self.0.iter().map(|(key, edit)| (key, edit))
+    pub fn iter(&self) -> impl Iterator<Item = ((usize, usize), &PrimitiveEdit)> {
+        self.0
+            .iter()
+            .map(|&((mesh, primitive), ref edit)| ((mesh as usize, primitive as usize), edit))
     }
 }
 
@@ -1468,7 +1482,7 @@ fn edit_primitives<'d>(
                     .set_member(
                         primitive,
                         "material",
-                        (first_new_material + material).to_string(),
+                        (first_new_material + material as usize).to_string(),
                     )
                     .map_err(edit_error)?;
             }
@@ -1801,7 +1815,7 @@ fn part_of(bytes: &[u8], input: &[u8]) -> Part {
 /// morph targets: those the edit sets, and the others it leaves), handed to `visit`.
 fn visit_final_primitive_accessors(root: &Node, changes: &Changes, mut visit: impl FnMut(Ref)) {
     let meshes = root.get("meshes").and_then(Node::as_array).unwrap_or(&[]);
-    for (&(m, p), edit) in changes.primitives.iter() {
+    for ((m, p), edit) in changes.primitives.iter() {
         let Some(primitive) = meshes
             .get(m)
             .and_then(|mesh| mesh.get("primitives"))
