@@ -23,7 +23,7 @@ use crate::scene::options::{Debug, Timings};
 use crate::scene::pieces::Pieces;
 use crate::scene::report::{
     DebugClassReport, DebugColorsReport, MorphReport, Notice, PrimitiveAction, PrimitiveReport,
-    Report, StorageChange, StorageReport, TangentReport, index32, thousands,
+    Report, StorageChange, StorageReport, TangentReport, thousands,
 };
 use crate::scene::{OutputFormat, Processed, SceneOptions, TangentType};
 use accessor::{Data, DecodedAccessors};
@@ -46,7 +46,7 @@ fn accessor_count(root: &Node, index: Option<usize>) -> usize {
         .unwrap_or(0)
 }
 
-fn primitive_node(root: &Node, mesh: usize, primitive: usize) -> Option<&Node> {
+fn primitive_node(root: &Node, (mesh, primitive): (usize, usize)) -> Option<&Node> {
     root.get("meshes")?
         .index(mesh)?
         .get("primitives")?
@@ -241,15 +241,15 @@ fn layouts(plans: &[PrimitivePlan], computed: &[Computed], marks: Vec<Marks>) ->
         })
         .collect();
     for plan in plans {
-        let Some(Some(layout)) = plan.job.and_then(|j| layouts.get_mut(j)) else {
+        let Some(Some(layout)) = plan.job().and_then(|j| layouts.get_mut(j)) else {
             continue;
         };
         if layout.primitives.is_empty() {
             layout.texcoord = plan.texcoord_set;
         }
         layout.primitives.push(PrimitiveRef {
-            mesh: plan.mesh,
-            primitive: plan.primitive,
+            mesh: plan.mesh as usize,
+            primitive: plan.primitive as usize,
             mesh_name: plan.mesh_name.as_deref().map(str::to_owned),
         });
     }
@@ -272,7 +272,7 @@ struct Job {
     key: GeometryKey,
     method: Method,
     /// The first primitive that needed it, `[mesh, primitive]`, for messages.
-    first: [usize; 2],
+    first: [u32; 2],
 }
 
 impl Job {
@@ -326,8 +326,8 @@ fn decode_draco(
     let wanted: Vec<(&Node, String)> = plans
         .iter()
         .filter_map(|plan| {
-            let key = &jobs.get(plan.job?)?.key;
-            let primitive = primitive_node(root, plan.mesh, plan.primitive)?;
+            let key = &jobs.get(plan.job()?)?.key;
+            let primitive = primitive_node(root, plan.at())?;
             let stream = draco::extension(primitive)?
                 .get("bufferView")
                 .and_then(Node::as_u64);
@@ -485,7 +485,7 @@ fn report_primitives(
     // findings (the others name it in `shared_with`), and after the last its computation goes.
     let mut plans_of_job: Vec<Option<(usize, usize)>> = vec![None; computed.len()];
     for (p, plan) in plans.iter().enumerate() {
-        if let Some(span) = plan.job.and_then(|j| plans_of_job.get_mut(j)) {
+        if let Some(span) = plan.job().and_then(|j| plans_of_job.get_mut(j)) {
             span.get_or_insert((p, p)).1 = p;
         }
     }
@@ -507,13 +507,13 @@ fn report_primitives(
     let mut computed: Vec<Option<Computed>> = computed.into_iter().map(Some).collect();
     for (p, plan) in plans.iter().enumerate() {
         SceneError::check(scene.cancel)?;
-        let job = plan.job;
+        let job = plan.job();
         let span = job.and_then(|j| plans_of_job.get(j).copied().flatten());
         let shared_with = span
             .map(|(first, _)| first)
             .filter(|&first| first != p)
             .and_then(|first| plans.get(first))
-            .map(|first| [index32(first.mesh), index32(first.primitive)]);
+            .map(|first| [first.mesh, first.primitive]);
         report_primitive(
             scene,
             (plan, jobs, shared_with),
@@ -543,7 +543,7 @@ fn report_primitive(
     report.summary.primitives += 1;
     let mut entry = report_entry(plan, shared_with);
     let computation = plan
-        .job
+        .job()
         .and_then(|j| Some((j, &jobs.get(j)?.key, computed.get(j)?.as_ref()?)));
     match (&plan.action, computation) {
         (Action::Skip(reason), _) => {
@@ -555,13 +555,10 @@ fn report_primitive(
         (Action::Audit, Some((j, key, c))) => {
             report.summary.audited += 1;
             audit_primitive(scene, plan, c, &mut entry, report)?;
-            if let Some(primitive) = primitive_node(scene.root, plan.mesh, plan.primitive)
+            if let Some(primitive) = primitive_node(scene.root, plan.at())
                 && let Some(edit) = edits.paint_kept(scene, primitive, key.topology, j, c)?
             {
-                edits
-                    .changes
-                    .primitives
-                    .insert((plan.mesh, plan.primitive), edit);
+                edits.changes.primitives.insert(plan.at(), edit);
             }
         }
         (Action::Generate, Some((j, key, c))) => {
@@ -581,12 +578,8 @@ fn report_primitive(
 
 /// A painted primitive's note: what it lost in the debug output.
 fn painted_note(root: &Node, plan: &PrimitivePlan, edits: &Edits) -> Option<String> {
-    edits
-        .changes
-        .primitives
-        .get(&(plan.mesh, plan.primitive))?
-        .material?;
-    let primitive = primitive_node(root, plan.mesh, plan.primitive)?;
+    edits.changes.primitives.get(&plan.at())?.material?;
+    let primitive = primitive_node(root, plan.at())?;
     let material = match plan.material {
         Some(m) => format!("material {m}"),
         None => "no material".to_owned(),
@@ -669,13 +662,13 @@ fn report_painting(report: &mut Report, root: &Node, painted: &[Painted], edits:
 /// What the plan knows of a primitive, before any action.
 fn report_entry(plan: &PrimitivePlan, shared_with: Option<[u32; 2]>) -> PrimitiveReport {
     PrimitiveReport {
-        mesh: index32(plan.mesh),
-        primitive: index32(plan.primitive),
+        mesh: plan.mesh,
+        primitive: plan.primitive,
         mesh_name: plan.mesh_name.clone(),
         material: plan.material.map(|m| m as u64),
         uses: plan.uses,
         texcoord: plan.texcoord_set,
-        notes: plan.notes.clone().into(),
+        notes: plan.notes.clone(),
         shared_with,
         ..PrimitiveReport::default()
     }
@@ -698,7 +691,7 @@ fn audit_primitive(
     report: &mut Report,
 ) -> Result<(), SceneError> {
     entry.action = PrimitiveAction::Audited;
-    let tangent = primitive_node(scene.root, plan.mesh, plan.primitive)
+    let tangent = primitive_node(scene.root, plan.at())
         .and_then(|n| n.get("attributes")?.get("TANGENT")?.as_u64())
         .and_then(|i| usize::try_from(i).ok());
     if let Some(index) = tangent {
@@ -740,7 +733,7 @@ fn generate_primitive(
         PrimitiveAction::Generated
     };
     add_diagnostics(entry, c);
-    let Some(primitive) = primitive_node(scene.root, plan.mesh, plan.primitive) else {
+    let Some(primitive) = primitive_node(scene.root, plan.at()) else {
         return Ok(false);
     };
     let snorm = tangent_snorm(scene, key, c).map(|snorm| TangentStorage {
@@ -760,10 +753,7 @@ fn generate_primitive(
             handedness_changes: c.morph_handedness_changes,
         }));
     }
-    edits
-        .changes
-        .primitives
-        .insert((plan.mesh, plan.primitive), edit);
+    edits.changes.primitives.insert(plan.at(), edit);
     Ok(true)
 }
 

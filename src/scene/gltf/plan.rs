@@ -8,7 +8,7 @@
 //! reason. Primitives with the same mode, indices, `POSITION`, `NORMAL`, texture coordinates and
 //! morph targets are computed once.
 
-use crate::scene::report::FrameUse;
+use crate::scene::report::{FrameUse, Notes, index32};
 use std::sync::Arc;
 use tspace_json::Node;
 
@@ -110,8 +110,9 @@ pub struct GeometryKey {
 /// The decision for one primitive.
 #[derive(Clone, Debug)]
 pub struct PrimitivePlan {
-    pub mesh: usize,
-    pub primitive: usize,
+    // Positions in 32 bits, like the report's: a scene may have a hundred thousand plans.
+    pub mesh: u32,
+    pub primitive: u32,
     /// Shared by the mesh's primitives (and their report entries).
     pub mesh_name: Option<Arc<str>>,
     pub material: Option<usize>,
@@ -124,9 +125,25 @@ pub struct PrimitivePlan {
     /// For [`Action::Generate`] and [`Action::Audit`]: the computation it joins, as the caller
     /// of [`plan`] numbered its geometry's key. The key itself is not kept: most primitives of
     /// a large scene share theirs, and the caller's list holds each once.
-    pub job: Option<usize>,
+    job: Option<u32>,
     /// Notes for the report (a texture transform on the normal map, conflicting UV sets).
-    pub notes: Vec<String>,
+    pub notes: Notes,
+}
+
+// One per primitive, kept until the scene is written; a change that grows it should be a
+// decision.
+const _: () = assert!(std::mem::size_of::<PrimitivePlan>() == 80);
+
+impl PrimitivePlan {
+    /// `(mesh, primitive)`: where the primitive is in the document.
+    pub fn at(&self) -> (usize, usize) {
+        (self.mesh as usize, self.primitive as usize)
+    }
+
+    /// The computation it joins, for [`Action::Generate`] and [`Action::Audit`].
+    pub fn job(&self) -> Option<usize> {
+        self.job.map(|j| j as usize)
+    }
 }
 
 /// Options that change the decisions.
@@ -382,8 +399,8 @@ fn plan_primitive(
     let action = decide(&facts, &usage, options);
     let key = geometry_key(primitive, &facts, &action, options);
     let plan = PrimitivePlan {
-        mesh,
-        primitive: index,
+        mesh: index32(mesh),
+        primitive: index32(index),
         mesh_name: mesh_name.clone(),
         material,
         texcoord_set: usage.set,
@@ -391,7 +408,7 @@ fn plan_primitive(
         had_tangents: facts.had_tangents,
         action,
         job: None,
-        notes: usage.notes,
+        notes: usage.notes.into(),
     };
     (plan, key)
 }
@@ -421,7 +438,7 @@ pub fn plan(
                 materials,
                 options,
             );
-            plan.job = key.map(|key| job_of(&plan, key));
+            plan.job = key.map(|key| index32(job_of(&plan, key)));
             plans.push(plan);
         }
     }
@@ -444,7 +461,7 @@ mod tests {
         plans
             .into_iter()
             .map(|p| {
-                let key = p.job.map(|j| keys[j].clone());
+                let key = p.job().map(|j| keys[j].clone());
                 (p, key)
             })
             .collect()
@@ -522,7 +539,7 @@ mod tests {
         // Only the primitives that compute anything have a key, and each its own number here.
         for (plan, key) in &p {
             let computes = matches!(plan.action, Action::Generate | Action::Audit);
-            assert_eq!(plan.job.is_some(), computes);
+            assert_eq!(plan.job().is_some(), computes);
             assert_eq!(key.is_some(), computes);
         }
     }
