@@ -146,7 +146,7 @@ pub struct PrimitiveReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<String>)]
     pub mesh_name: Option<Arc<str>>,
-    /// As the file says, whether or not that material exists: 64 bits.
+    // As the file spells it, whether or not that material exists: 64 bits, unlike the positions.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<usize>)]
     pub material: Option<u64>,
