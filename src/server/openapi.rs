@@ -364,6 +364,35 @@ mod tests {
         serde_json::to_value(ApiDoc::openapi()).unwrap()
     }
 
+    /// Where the document is committed, and the command that writes it anew.
+    const COMMITTED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/openapi.json");
+    const BLESS: &str = "TSPACE_BLESS_OPENAPI";
+
+    /// The contract as committed in `docs/openapi.json`: a change to what the service promises
+    /// (a field, a type, a description, since a doc comment on a report field becomes one) is
+    /// then a change to that file, seen in review, rather than one that passes unnoticed.
+    #[test]
+    fn the_document_is_the_one_committed_in_the_docs() {
+        let mut text = ApiDoc::openapi().to_pretty_json().unwrap();
+        text.push('\n');
+        if std::env::var_os(BLESS).is_some() {
+            std::fs::write(COMMITTED, &text).unwrap();
+        }
+        let committed = std::fs::read_to_string(COMMITTED).unwrap_or_default();
+        let first_difference = committed
+            .lines()
+            .zip(text.lines())
+            .enumerate()
+            .find(|(_, (old, new))| old != new)
+            .map(|(n, (old, new))| format!("line {}: committed {old:?}, now {new:?}", n + 1));
+        assert!(
+            committed == text,
+            "the OpenAPI document is not docs/openapi.json ({}); if the change is meant, run \
+             `{BLESS}=1 cargo test --lib the_document_is_the_one_committed` and commit the file",
+            first_difference.unwrap_or_else(|| "lengths differ".into())
+        );
+    }
+
     #[test]
     fn the_parameters_are_the_option_table_and_the_content_encoding() {
         let api = document();
