@@ -20,3 +20,10 @@ pub mod report;
 pub mod uri;
 
 pub use options::{Normals, OutputFormat, Processed, SceneLimits, SceneOptions, TangentType};
+
+/// A position in one of a document's JSON arrays in 32 bits, as the per-primitive records hold
+/// it (a scene may have a hundred thousand primitives): every element of such an array takes
+/// at least a byte of a text under 4 GiB, so every position fits.
+pub fn index32(index: usize) -> u32 {
+    u32::try_from(index).unwrap_or(u32::MAX)
+}

@@ -137,7 +137,7 @@ const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 168);
 /// primitives.
 #[derive(Clone, Debug, Default, Serialize, ToSchema)]
 pub struct PrimitiveReport {
-    // Indices as 32 bits: they index arrays of a JSON text, which is under 4 GiB.
+    // Positions in 32 bits (`scene::index32`).
     #[schema(value_type = usize)]
     pub mesh: u32,
     #[schema(value_type = usize)]
@@ -185,12 +185,6 @@ pub struct PrimitiveReport {
     #[serde(skip_serializing_if = "Notes::is_empty")]
     #[schema(value_type = Vec<String>)]
     pub notes: Notes,
-}
-
-/// An index into one of a document's JSON arrays, as the report holds it: every element of such
-/// an array takes at least a byte of a text under 4 GiB, so every index fits.
-pub fn index32(index: usize) -> u32 {
-    u32::try_from(index).unwrap_or(u32::MAX)
 }
 
 /// What became of a primitive, written as its name.
@@ -261,23 +255,44 @@ macro_rules! written_as_str {
 
 written_as_str!(PrimitiveAction, FrameUse, StorageChange);
 
-/// A primitive's notes. Nearly every primitive has none, and a scene may have a hundred
-/// thousand: an empty list here is one null pointer, where a `Vec` takes 24 bytes.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Notes(Option<Box<Box<[String]>>>);
+/// A short list held as one pointer, null while it is empty: a report holds a dozen per
+/// primitive (the notes, and the first few indices of every tally) and a scene may have a
+/// hundred thousand primitives, nearly all with every list empty, where a `Vec` takes 24
+/// bytes. Pushing reallocates; these lists stay short. Written as a JSON array.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Thin<T>(Option<Box<Box<[T]>>>);
 
-impl Notes {
-    pub fn push(&mut self, note: String) {
-        let mut notes = self
-            .0
-            .take()
-            .map_or_else(Vec::new, |notes| notes.into_vec());
-        notes.push(note);
-        *self = Notes::from(notes);
+/// A primitive's notes.
+pub type Notes = Thin<String>;
+
+/// The first few indices of a tally, ascending.
+pub type FirstFew = Thin<u32>;
+
+impl<T> Default for Thin<T> {
+    fn default() -> Self {
+        Thin(None)
+    }
+}
+
+impl<T> Thin<T> {
+    pub fn new(list: &[T]) -> Self
+    where
+        T: Clone,
+    {
+        Thin::from(list.to_vec())
     }
 
-    pub fn as_slice(&self) -> &[String] {
-        self.0.as_deref().map_or(&[], |notes| notes)
+    pub fn push(&mut self, item: T) {
+        let mut items = self
+            .0
+            .take()
+            .map_or_else(Vec::new, |items| items.into_vec());
+        items.push(item);
+        *self = Thin::from(items);
+    }
+
+    pub fn as_slice(&self) -> &[T] {
+        self.0.as_deref().map_or(&[], |items| items)
     }
 
     pub fn is_empty(&self) -> bool {
@@ -285,21 +300,21 @@ impl Notes {
     }
 }
 
-impl std::ops::Deref for Notes {
-    type Target = [String];
+impl<T> std::ops::Deref for Thin<T> {
+    type Target = [T];
 
-    fn deref(&self) -> &[String] {
+    fn deref(&self) -> &[T] {
         self.as_slice()
     }
 }
 
-impl From<Vec<String>> for Notes {
-    fn from(notes: Vec<String>) -> Notes {
-        Notes((!notes.is_empty()).then(|| Box::new(notes.into_boxed_slice())))
+impl<T> From<Vec<T>> for Thin<T> {
+    fn from(items: Vec<T>) -> Self {
+        Thin((!items.is_empty()).then(|| Box::new(items.into_boxed_slice())))
     }
 }
 
-impl Serialize for Notes {
+impl<T: Serialize> Serialize for Thin<T> {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         self.as_slice().serialize(serializer)
     }
@@ -335,32 +350,6 @@ pub struct TallyReport {
     #[serde(skip_serializing_if = "FirstFew::is_empty")]
     #[schema(value_type = Vec<u32>)]
     pub first: FirstFew,
-}
-
-/// The first few indices of a tally, ascending. A report holds eleven such lists per primitive
-/// and a scene may have a hundred thousand primitives, nearly all with every list empty: an
-/// empty list here is one null pointer, where a `Vec` takes 24 bytes.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct FirstFew(Option<Box<Box<[u32]>>>);
-
-impl FirstFew {
-    pub fn new(list: &[u32]) -> FirstFew {
-        FirstFew((!list.is_empty()).then(|| Box::new(list.into())))
-    }
-
-    pub fn as_slice(&self) -> &[u32] {
-        self.0.as_deref().map_or(&[], |list| list)
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.0.is_none()
-    }
-}
-
-impl Serialize for FirstFew {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        self.as_slice().serialize(serializer)
-    }
 }
 
 #[derive(Clone, Debug, Default, Serialize, ToSchema)]

@@ -247,9 +247,10 @@ fn layouts(plans: &[PrimitivePlan], computed: &[Computed], marks: Vec<Marks>) ->
         if layout.primitives.is_empty() {
             layout.texcoord = plan.texcoord_set;
         }
+        let (mesh, primitive) = plan.at();
         layout.primitives.push(PrimitiveRef {
-            mesh: plan.mesh as usize,
-            primitive: plan.primitive as usize,
+            mesh,
+            primitive,
             mesh_name: plan.mesh_name.as_deref().map(str::to_owned),
         });
     }

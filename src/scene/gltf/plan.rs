@@ -8,7 +8,8 @@
 //! reason. Primitives with the same mode, indices, `POSITION`, `NORMAL`, texture coordinates and
 //! morph targets are computed once.
 
-use crate::scene::report::{FrameUse, Notes, index32};
+use crate::scene::index32;
+use crate::scene::report::{FrameUse, Notes};
 use std::sync::Arc;
 use tspace_json::Node;
 
@@ -110,7 +111,7 @@ pub struct GeometryKey {
 /// The decision for one primitive.
 #[derive(Clone, Debug)]
 pub struct PrimitivePlan {
-    // Positions in 32 bits, like the report's: a scene may have a hundred thousand plans.
+    // Positions in 32 bits ([`index32`]): a scene may have a hundred thousand plans.
     pub mesh: u32,
     pub primitive: u32,
     /// Shared by the mesh's primitives (and their report entries).

@@ -5,6 +5,7 @@
 //! extensions in [`KNOWN_EXTENSIONS`]; when a document uses any other extension, one of its
 //! members might hold an index this list does not know, so the writer then drops nothing.
 
+use crate::scene::index32;
 use tspace_json::Node;
 
 /// Extensions whose every index reference is listed here (most have none at all).
@@ -36,8 +37,8 @@ pub const KNOWN_EXTENSIONS: &[&str] = &[
     "EXT_lights_image_based",
 ];
 
-/// Who holds a reference. Indices in 32 bits: each counts elements of an array in a JSON text,
-/// which is under 4 GiB, and a scene of many small primitives holds several references each.
+/// Who holds a reference. Positions in 32 bits ([`index32`]): a scene of many small
+/// primitives holds several references each.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Owner {
     /// `meshes[mesh].primitives[primitive]` (attributes, indices, targets, extensions).
@@ -55,11 +56,6 @@ impl Owner {
             _ => None,
         }
     }
-}
-
-/// An array position as an [`Owner`] holds it (see there why it fits).
-fn position(i: usize) -> u32 {
-    u32::try_from(i).unwrap_or(u32::MAX)
 }
 
 fn items(node: Option<&Node>) -> &[Node] {
@@ -108,7 +104,7 @@ pub fn accessor_refs(root: &Node) -> Vec<Ref<'_>> {
 fn visit_accessor_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (m, mesh) in items(root.get("meshes")).iter().enumerate() {
         for (p, primitive) in items(mesh.get("primitives")).iter().enumerate() {
-            let owner = Owner::Primitive(position(m), position(p));
+            let owner = Owner::Primitive(index32(m), index32(p));
             let nodes = values(primitive.get("attributes"))
                 .map(Some)
                 .chain(std::iter::once(primitive.get("indices")))
@@ -158,7 +154,7 @@ pub fn view_refs(root: &Node) -> Vec<Ref<'_>> {
 
 fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (a, accessor) in items(root.get("accessors")).iter().enumerate() {
-        let owner = Owner::Accessor(position(a));
+        let owner = Owner::Accessor(index32(a));
         if let Some((n, _)) = index(accessor.get("bufferView")) {
             out((owner, n));
         }
@@ -172,7 +168,7 @@ fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     }
     for (i, image) in items(root.get("images")).iter().enumerate() {
         if let Some((n, _)) = index(image.get("bufferView")) {
-            out((Owner::Image(position(i)), n));
+            out((Owner::Image(index32(i)), n));
         }
     }
     for (m, mesh) in items(root.get("meshes")).iter().enumerate() {
@@ -181,7 +177,7 @@ fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
                 .get("extensions")
                 .and_then(|e| e.get("KHR_draco_mesh_compression"));
             if let Some((n, _)) = index(draco.and_then(|d| d.get("bufferView"))) {
-                out((Owner::Primitive(position(m), position(p)), n));
+                out((Owner::Primitive(index32(m), index32(p)), n));
             }
         }
     }

@@ -24,12 +24,12 @@ use super::glb;
 use super::load::{Buffer, BufferSource, Container, Loaded, Resources};
 use super::quantize::Snorm;
 use super::refs::{self, Owner};
-use crate::scene::OutputFormat;
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::options::Compression;
 use crate::scene::pieces::{self, Part};
 use crate::scene::report::{Dropped, Notice};
 use crate::scene::uri;
+use crate::scene::{OutputFormat, index32};
 use compress::{Encoded, Output, Prefiltered, Shape};
 use rayon::prelude::*;
 use tspace_json::{self as json, Document, Editor, Node, Text};
@@ -80,7 +80,7 @@ pub struct PrimitiveEdit {
 
 /// The edited primitives' edits by `(mesh, primitive)`, in that order: a list, since edits come
 /// in that order, without a map's room per entry (a scene may edit a hundred thousand). Keys in
-/// 32 bits: positions in arrays of a JSON text, which is under 4 GiB.
+/// 32 bits ([`index32`]).
 #[derive(Default)]
 pub struct PrimitiveEdits(Vec<((u32, u32), PrimitiveEdit)>);
 
@@ -89,10 +89,7 @@ const _: () = assert!(std::mem::size_of::<((u32, u32), PrimitiveEdit)>() == 80);
 
 impl PrimitiveEdits {
     fn position(&self, &(mesh, primitive): &(usize, usize)) -> Result<usize, usize> {
-        let key = (
-            u32::try_from(mesh).unwrap_or(u32::MAX),
-            u32::try_from(primitive).unwrap_or(u32::MAX),
-        );
+        let key = (index32(mesh), index32(primitive));
         self.0.binary_search_by(|(k, _)| k.cmp(&key))
     }
 
@@ -105,19 +102,15 @@ impl PrimitiveEdits {
         self.position(key).is_ok()
     }
 
-    /// Sets the edit of `key`, replacing any it had. A key past 32 bits names no primitive
-    /// of a document tspace reads, and its edit is dropped.
+    /// Sets the edit of `key`, replacing any it had.
     pub fn insert(&mut self, key: (usize, usize), edit: PrimitiveEdit) {
-        let (Ok(mesh), Ok(primitive)) = (u32::try_from(key.0), u32::try_from(key.1)) else {
-            return;
-        };
         match self.position(&key) {
             Ok(i) => {
                 if let Some(slot) = self.0.get_mut(i) {
                     slot.1 = edit;
                 }
             }
-            Err(i) => self.0.insert(i, ((mesh, primitive), edit)),
+            Err(i) => self.0.insert(i, ((index32(key.0), index32(key.1)), edit)),
         }
     }
 
