@@ -4,11 +4,13 @@
 //! the issue sets as targets and the child's peak RSS.
 //!
 //! `cargo bench --bench whole_path`. Scenes: a generated UV sphere of 2M triangles (56 MB GLB),
-//! one of 1M triangles as an OBJ (about 100 MB of text), the JSON-heavy scene of 50,000 one-triangle primitives with their own accessors (35.7 MB,
-//! `tspace_testkit::json_heavy`) and the same without NORMAL (27.3 MB), 100,000 primitives that
-//! share one triangle's accessors (5.8 MB, `json_heavy_shared`), the corpus's DamagedHelmet
-//! when `../shared/corpus` is present. Each scene is also sent once to a fresh `tspace serve`
-//! process, whose peak RSS is the service's side of the JSON-heavy target (the issue's "body").
+//! one of 1M triangles as an OBJ (about 100 MB of text), the JSON-heavy scene of 50,000
+//! one-triangle primitives with their own accessors (35.7 MB, `tspace_testkit::json_heavy`), the
+//! same written with `--compress meshopt`, the same without NORMAL (27.3 MB), 100,000 primitives
+//! that share one triangle's accessors (5.8 MB, `json_heavy_shared`), and the corpus's
+//! DamagedHelmet when `../shared/corpus` is present. Each scene is also sent once to a fresh
+//! `tspace serve` process, whose peak RSS is the service's side of the JSON-heavy target (the
+//! issue's "body").
 //! Settings:
 //! - `TSPACE_BENCH_QUICK=1`: a 200k sphere and few samples (a smoke test of the bench itself);
 //! - `TSPACE_BENCH_SECONDS` (default 5): how long each HTTP load level runs;
@@ -28,6 +30,7 @@ use tspace::config::ServerConfig;
 use tspace::scene::SceneOptions;
 use tspace::scene::gltf::load::NoResources;
 use tspace::scene::input::{self, InputKind};
+use tspace::scene::options::Compression;
 use tspace_testkit::process::{ServerProcess, status_line};
 use tspace_testkit::shapes;
 
@@ -100,6 +103,8 @@ struct Scene {
     kind: InputKind,
     bytes: Vec<u8>,
     mesh: BenchMesh,
+    /// How the output is stored: `--compress` on the command line, `compress=` on the service.
+    compress: Compression,
 }
 
 fn sphere(dir: &Path, quick: bool) -> Scene {
@@ -135,6 +140,7 @@ fn shape_scene(
         kind,
         bytes,
         mesh,
+        compress: Compression::Auto,
     }
 }
 
@@ -189,6 +195,18 @@ fn json_heavy(dir: &Path, quick: bool, normals: bool) -> Scene {
         kind: InputKind::Glb,
         bytes,
         mesh,
+        compress: Compression::Auto,
+    }
+}
+
+/// The JSON-heavy scene written with `EXT_meshopt_compression`: every one of its 250,000 views
+/// encoded, and a document twice the input's (each view gains the extension's object).
+fn json_heavy_compressed(dir: &Path, quick: bool) -> Scene {
+    let scene = json_heavy(dir, quick, true);
+    Scene {
+        name: format!("{}, written with meshopt", scene.name),
+        compress: Compression::Meshopt,
+        ..scene
     }
 }
 
@@ -214,6 +232,7 @@ fn json_heavy_shared(dir: &Path, quick: bool) -> Scene {
         kind: InputKind::Glb,
         bytes,
         mesh,
+        compress: Compression::Auto,
     }
 }
 
@@ -230,6 +249,7 @@ fn helmet(dir: &Path) -> Option<Scene> {
         kind: InputKind::Glb,
         bytes,
         mesh,
+        compress: Compression::Auto,
     })
 }
 
@@ -272,6 +292,7 @@ fn run_cli(scene: &Scene, out: &Path) -> (f64, Option<u64>) {
         .arg(&scene.file)
         .arg("-o")
         .arg(out)
+        .args(["--compress", scene.compress.name()])
         .arg("-q");
     let started = Instant::now();
     let output = command.output().expect("tspace starts");
@@ -305,6 +326,7 @@ fn run_in_process(scene: &Scene, out: &Path) -> Phases {
     let read = started.elapsed().as_secs_f64();
     let options = SceneOptions {
         in_pieces: true,
+        compress: scene.compress,
         ..SceneOptions::default()
     };
     let processed =
@@ -419,7 +441,8 @@ fn run_service(scene: &Scene) -> ServiceRun {
         InputKind::Obj => "model/obj",
     };
     let started = Instant::now();
-    let answer = server.post("/v1/tangents", &scene.bytes, content_type);
+    let path = format!("/v1/tangents?compress={}", scene.compress.name());
+    let answer = server.post(&path, &scene.bytes, content_type);
     let seconds = started.elapsed().as_secs_f64();
     let status = status_line(&answer);
     assert!(
@@ -841,7 +864,7 @@ fn main() {
     let wanted = |name: &str| config.filter.as_deref().is_none_or(|f| name.contains(f));
     // The filter picks scenes by these labels, not by the names printed for them (which carry
     // sizes).
-    let makers: [(&str, MakeScene); 6] = [
+    let makers: [(&str, MakeScene); 7] = [
         ("sphere", |dir, quick| Some(sphere(dir, quick))),
         ("OBJ sphere", |dir, quick| Some(obj_sphere(dir, quick))),
         ("JSON-heavy", |dir, quick| {
@@ -849,6 +872,9 @@ fn main() {
         }),
         ("JSON-heavy without normals", |dir, quick| {
             Some(json_heavy(dir, quick, false))
+        }),
+        ("JSON-heavy written with meshopt", |dir, quick| {
+            Some(json_heavy_compressed(dir, quick))
         }),
         ("JSON-heavy, one geometry shared", |dir, quick| {
             Some(json_heavy_shared(dir, quick))

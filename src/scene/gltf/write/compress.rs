@@ -190,10 +190,10 @@ pub fn encode(data: &[u8], shape: Shape, prefiltered: Option<&Prefiltered>) -> O
             let vertex_count = indices.iter().max().map_or(0, |&m| m as usize + 1);
             let (bytes, mode) = if triangles && indices.len().is_multiple_of(3) {
                 let bytes = meshopt::encode_index_buffer(&indices, vertex_count).ok()?;
-                (bytes, Mode::Triangles)
+                (fitted(bytes), Mode::Triangles)
             } else {
                 let bytes = meshopt::encode_index_sequence(&indices, vertex_count).ok()?;
-                (bytes, Mode::Indices)
+                (fitted(bytes), Mode::Indices)
             };
             let encoded = Encoded {
                 bytes,
@@ -210,6 +210,14 @@ pub fn encode(data: &[u8], shape: Shape, prefiltered: Option<&Prefiltered>) -> O
         }
         Shape::Other => None,
     }
+}
+
+/// `bytes` without spare capacity. meshoptimizer's encoders return a vector of the worst case's
+/// size, and the writer keeps every view's until the output is written: on 10,000 one-triangle
+/// primitives that was 126 MB of capacity for 7 MB of streams.
+fn fitted(mut bytes: Vec<u8>) -> Vec<u8> {
+    bytes.shrink_to_fit();
+    bytes
 }
 
 /// Whether tspace's decoder (which follows meshoptimizer's, and the WebAssembly one browsers
@@ -266,7 +274,9 @@ fn encode_vertex(data: &[u8], stride: usize) -> Option<Vec<u8>> {
         if !rest.is_empty() {
             return None;
         }
-        meshopt::encode_vertex_buffer_level(elements, 2, Some(0)).ok()
+        meshopt::encode_vertex_buffer_level(elements, 2, Some(0))
+            .ok()
+            .map(fitted)
     }
     macro_rules! by_stride {
         ($($s:literal)*) => {
@@ -293,6 +303,33 @@ mod tests {
         let encoded = encode(&data, Shape::Vertex { stride: 12 }, None).unwrap();
         assert_eq!(encoded.bytes[0], 0xa0);
         assert_eq!((encoded.count, encoded.filter), (100, Filter::None));
+    }
+
+    #[test]
+    fn encoded_streams_keep_no_spare_room() {
+        // One triangle's views, as in a scene of many small primitives: the encoders' worst
+        // case is many times the stream, and every view's stream waits for the output.
+        let positions: Vec<u8> = (0..36).map(|i| (i * 13 % 251) as u8).collect();
+        let vertex = encode(&positions, Shape::Vertex { stride: 12 }, None).unwrap();
+        let indices: Vec<u8> = [0u16, 1, 2].iter().flat_map(|i| i.to_le_bytes()).collect();
+        let triangles = Shape::Index {
+            size: 2,
+            triangles: true,
+        };
+        let lines = Shape::Index {
+            size: 2,
+            triangles: false,
+        };
+        let index = encode(&indices, triangles, None).unwrap();
+        let sequence = encode(&indices, lines, None).unwrap();
+        for encoded in [vertex, index, sequence] {
+            assert_eq!(
+                encoded.bytes.capacity(),
+                encoded.bytes.len(),
+                "{:?}",
+                encoded.mode
+            );
+        }
     }
 
     #[test]
