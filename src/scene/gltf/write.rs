@@ -27,7 +27,7 @@ use super::refs::{self, Owner};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::options::Compression;
 use crate::scene::pieces::{self, Part};
-use crate::scene::report::{Dropped, Notice};
+use crate::scene::report::{Dropped, Notice, thousands};
 use crate::scene::uri;
 use crate::scene::{OutputFormat, index32};
 use compress::{Encoded, Output, Prefiltered, Shape};
@@ -1972,6 +1972,35 @@ mod tests {
     }
 
     #[test]
+    fn a_few_compressed_views_are_each_named_and_many_are_counted() {
+        let few = [(0, "ATTRIBUTES", None), (1, "TRIANGLES", None)];
+        let text = describe_compression(&few, None);
+        assert!(
+            text.contains("2 buffer views encoded with meshoptimizer's lossless codecs (bufferViews[0] ATTRIBUTES, bufferViews[1] TRIANGLES)"),
+            "{text}"
+        );
+        let many: Vec<(usize, &'static str, Option<&'static str>)> = (0..5000)
+            .map(|v| match v % 5 {
+                4 => (v, "TRIANGLES", None),
+                3 => (v, "ATTRIBUTES", Some("OCTAHEDRAL")),
+                _ => (v, "ATTRIBUTES", None),
+            })
+            .collect();
+        let text = describe_compression(&many, None);
+        assert!(
+            text.contains(
+                "5,000 buffer views encoded with meshoptimizer's lossless codecs (3,000 ATTRIBUTES: \
+                 bufferViews[0], bufferViews[1], bufferViews[2] and 2,997 more; 1,000 ATTRIBUTES \
+                 with filter OCTAHEDRAL: bufferViews[3], bufferViews[8], bufferViews[13] and 997 \
+                 more; 1,000 TRIANGLES: bufferViews[4], bufferViews[9], bufferViews[14] and 997 \
+                 more); a filter only where"
+            ),
+            "{text}"
+        );
+        assert!(text.len() < 600, "{} bytes", text.len());
+    }
+
+    #[test]
     fn min_max_in_component_values() {
         let data: Vec<u8> = [[1i16, -5, 3], [7, 2, -9]]
             .iter()
@@ -2635,17 +2664,86 @@ fn list_meshopt<'d>(
 }
 
 /// The report's line on what this write compressed: each view's mode, and its filter and why.
+/// Up to this many compressed views, the notice names each with its encoding. Past it, a
+/// scene of many small views would make the notice the largest part of the report (250,000
+/// views: 7 MB, and a fifth of the write), and no one reads such a list: it counts the views
+/// of each encoding and names the first few.
+const VIEWS_NAMED: usize = 20;
+
+/// `ATTRIBUTES`, or `ATTRIBUTES with filter OCTAHEDRAL`.
+fn encoding(mode: &str, filter: Option<&str>) -> String {
+    match filter {
+        Some(f) => format!("{mode} with filter {f}"),
+        None => mode.to_owned(),
+    }
+}
+
+/// `200,000 ATTRIBUTES: bufferViews[0], bufferViews[1], bufferViews[2] and 199,997 more; ...`,
+/// the encodings in the order they first appear.
+fn views_by_encoding(views: &[(usize, &'static str, Option<&'static str>)]) -> String {
+    const NAMED: usize = 3;
+    struct Group {
+        mode: &'static str,
+        filter: Option<&'static str>,
+        count: usize,
+        first: Vec<usize>,
+    }
+    let mut groups: Vec<Group> = Vec::new();
+    for &(v, mode, filter) in views {
+        let index = match groups
+            .iter()
+            .position(|g| (g.mode, g.filter) == (mode, filter))
+        {
+            Some(i) => i,
+            None => {
+                groups.push(Group {
+                    mode,
+                    filter,
+                    count: 0,
+                    first: Vec::new(),
+                });
+                groups.len() - 1
+            }
+        };
+        let group = &mut groups[index];
+        group.count += 1;
+        if group.first.len() < NAMED {
+            group.first.push(v);
+        }
+    }
+    let describe = |g: &Group| {
+        let named: Vec<String> = g
+            .first
+            .iter()
+            .map(|v| format!("bufferViews[{v}]"))
+            .collect();
+        let more = match g.count - g.first.len() {
+            0 => String::new(),
+            n => format!(" and {} more", thousands(n as u64)),
+        };
+        format!(
+            "{} {}: {}{more}",
+            thousands(g.count as u64),
+            encoding(g.mode, g.filter),
+            named.join(", ")
+        )
+    };
+    groups.iter().map(describe).collect::<Vec<_>>().join("; ")
+}
+
 fn describe_compression(
     views: &[(usize, &'static str, Option<&'static str>)],
     packed: Option<&Packed>,
 ) -> String {
-    let list: Vec<String> = views
-        .iter()
-        .map(|(v, mode, filter)| match filter {
-            Some(f) => format!("bufferViews[{v}] {mode} with filter {f}"),
-            None => format!("bufferViews[{v}] {mode}"),
-        })
-        .collect();
+    let list = if views.len() <= VIEWS_NAMED {
+        views
+            .iter()
+            .map(|&(v, mode, filter)| format!("bufferViews[{v}] {}", encoding(mode, filter)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    } else {
+        views_by_encoding(views)
+    };
     let filtered = views.iter().any(|(_, _, f)| f.is_some());
     let copied = packed.is_some_and(|p| {
         p.old
@@ -2654,9 +2752,9 @@ fn describe_compression(
     });
     format!(
         "EXT_meshopt_compression: {} buffer view{} encoded with meshoptimizer's lossless codecs ({}); {}{}",
-        views.len(),
+        thousands(views.len() as u64),
         if views.len() == 1 { "" } else { "s" },
-        list.join(", "),
+        list,
         if filtered {
             "a filter only where it decodes to exactly the values written (checked): views copied from input views stored with it, and TANGENT quantized to the octahedral representation its NORMAL has; none elsewhere, since filters are lossy"
         } else {

@@ -104,18 +104,20 @@ pub struct Encoded {
     pub count: usize,
 }
 
-/// A buffer view's `EXT_meshopt_compression` object, in the extension's member order.
+/// A buffer view's `EXT_meshopt_compression` object. Its members are in alphabetical order,
+/// the order tspace's outputs have always had them in (they went through a `serde_json` map,
+/// which sorts): every path that writes one serializes this struct as it stands.
 #[derive(Clone, Debug, serde::Serialize)]
 #[serde(rename_all = "camelCase")]
 pub struct MeshoptView {
     pub buffer: usize,
-    pub byte_offset: usize,
     pub byte_length: usize,
+    pub byte_offset: usize,
     pub byte_stride: usize,
-    pub mode: &'static str,
+    pub count: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub filter: Option<&'static str>,
-    pub count: usize,
+    pub mode: &'static str,
 }
 
 impl Encoded {
