@@ -30,7 +30,7 @@ use crate::scene::pieces::{self, Part};
 use crate::scene::report::{Dropped, Notice, thousands};
 use crate::scene::uri;
 use crate::scene::{OutputFormat, index32};
-use compress::{Encoded, Output, Prefiltered, Shape};
+use compress::{Encoded, Encoding, Output, Prefiltered, Shape};
 use rayon::prelude::*;
 use tspace_json::{self as json, Document, Editor, Node, Text};
 
@@ -485,9 +485,6 @@ pub struct Written {
     pub embedded_image_bytes: u64,
     pub dropped: Dropped,
     pub notices: Vec<Notice>,
-    /// Every view the output stores with meshopt compression that this write encoded:
-    /// `(output view index, mode, filter)`, the filter `None` when there is none.
-    pub compressed_views: Vec<(usize, &'static str, Option<&'static str>)>,
 }
 
 fn edit_error(error: json::EditError) -> SceneError {
@@ -670,16 +667,15 @@ fn edit<'a, 'l>(
         }
     }
     list_material_extensions(&mut editor, root, changes)?;
-    let compressed_views = layout
-        .packed
-        .as_ref()
-        .map(|p| p.compressed_views(&numbering))
-        .unwrap_or_default();
-    if !compressed_views.is_empty() {
-        warnings.push(Notice::new(
-            "output_compressed",
-            describe_compression(&compressed_views, layout.packed.as_ref()),
-        ));
+    if let Some(packed) = &layout.packed {
+        // Gone before the document is rendered: one entry per compressed view.
+        let compressed_views = packed.compressed_views(&numbering);
+        if !compressed_views.is_empty() {
+            warnings.push(Notice::new(
+                "output_compressed",
+                describe_compression(&compressed_views, Some(packed)),
+            ));
+        }
     }
     let json = editor.into_rendered().map_err(edit_error)?;
     let dropped = Dropped {
@@ -693,7 +689,6 @@ fn edit<'a, 'l>(
         embedded_image_bytes: images.external_bytes,
         dropped,
         notices: warnings,
-        compressed_views,
     };
     Ok((json, layout, images, written))
 }
@@ -2044,9 +2039,9 @@ struct Packed {
     /// Per input view.
     old: Vec<Placed>,
     /// Input views this write compressed (`compress=meshopt` on plain views): `(view, encoding)`.
-    fresh: Vec<(usize, Encoded)>,
+    fresh: Vec<(usize, Encoding)>,
     /// Per new view of the changes: its encoding, when compressed.
-    new_encoded: Vec<Option<Encoded>>,
+    new_encoded: Vec<Option<Encoding>>,
     /// Per new view: its range's offset in the fallback buffer (0 when not compressed).
     new_fallback: Vec<usize>,
     /// The fallback buffer's length; 0 when the output has none.
@@ -2061,7 +2056,7 @@ impl Packed {
         &self,
         numbering: &Numbering,
     ) -> Vec<(usize, &'static str, Option<&'static str>)> {
-        let entry = |view: usize, e: &Encoded| {
+        let entry = |view: usize, e: &Encoding| {
             let filter = (e.filter != tspace_meshopt::Filter::None).then(|| e.filter.name());
             (view, e.mode.name(), filter)
         };
@@ -2455,8 +2450,12 @@ fn lay_out_packed(
         packed: Some(Packed {
             output,
             old,
-            fresh,
-            new_encoded,
+            // The streams are in `bin` now.
+            fresh: fresh.iter().map(|(v, e)| (*v, e.encoding())).collect(),
+            new_encoded: new_encoded
+                .iter()
+                .map(|e| e.as_ref().map(Encoded::encoding))
+                .collect(),
             new_fallback,
             fallback_length,
         }),
@@ -2470,7 +2469,7 @@ fn compressed_view_json(
     length: usize,
     stride: Option<usize>,
     target: Option<u32>,
-    encoded: &Encoded,
+    encoded: &Encoding,
     data: usize,
 ) -> Result<String, SceneError> {
     created::compressed_buffer_view(

@@ -120,14 +120,39 @@ pub struct MeshoptView {
     pub mode: &'static str,
 }
 
+/// What the output's JSON says of an encoded view, kept once its bytes are in the data buffer:
+/// a scene of many small views would otherwise hold every stream twice while it is written.
+#[derive(Clone, Copy, Debug)]
+pub struct Encoding {
+    pub mode: Mode,
+    pub filter: Filter,
+    pub stride: usize,
+    pub count: usize,
+    /// The compressed stream's length.
+    pub length: usize,
+}
+
 impl Encoded {
+    /// Everything but the bytes.
+    pub fn encoding(&self) -> Encoding {
+        Encoding {
+            mode: self.mode,
+            filter: self.filter,
+            stride: self.stride,
+            count: self.count,
+            length: self.bytes.len(),
+        }
+    }
+}
+
+impl Encoding {
     /// The view's `EXT_meshopt_compression` object, its compressed bytes at `offset` of
     /// buffer 0.
     pub fn extension(&self, offset: usize) -> MeshoptView {
         MeshoptView {
             buffer: 0,
             byte_offset: offset,
-            byte_length: self.bytes.len(),
+            byte_length: self.length,
             byte_stride: self.stride,
             mode: self.mode.name(),
             filter: (self.filter != Filter::None).then(|| self.filter.name()),
