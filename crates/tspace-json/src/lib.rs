@@ -265,6 +265,15 @@ impl PartialEq<Text> for String {
 }
 
 impl Number {
+    /// The number spelled `text`, for a reader that found it in a text already parsed (the
+    /// caller's own output, read again without a tree): `None` unless `text` is a JSON number.
+    pub fn from_text(text: &str) -> Option<Number> {
+        let bytes = text.as_bytes();
+        let mut parser = Parser::new(text, 0, None);
+        (parser.check_number().is_ok() && parser.pos == bytes.len())
+            .then(|| Number(Text::new(text)))
+    }
+
     /// The source text, e.g. `-0`, `1e400`, `3.0`.
     pub fn raw(&self) -> &str {
         &self.0
@@ -2025,6 +2034,28 @@ mod tests {
 
     fn parse(s: &str) -> Result<Document<'_>, ParseError> {
         Document::parse(s.as_bytes())
+    }
+
+    #[test]
+    fn a_number_from_its_text_reads_as_the_parsed_one() {
+        for text in [
+            "3",
+            "3.0",
+            "3e2",
+            "-0",
+            "-7",
+            "1.5",
+            "18446744073709551616",
+            "0.0e5",
+        ] {
+            let doc = Document::parse(text.as_bytes()).unwrap();
+            let number = Number::from_text(text).unwrap();
+            assert_eq!(number.as_u64(), doc.root().as_u64(), "{text}");
+            assert_eq!(number.raw(), text);
+        }
+        for text in ["", "01", "3 ", " 3", "1.", "-", "+1", "0x10", "1e", "\"3\""] {
+            assert!(Number::from_text(text).is_none(), "{text:?}");
+        }
     }
 
     #[test]

@@ -6,8 +6,9 @@
 //! most inputs and are simply dropped. A panic (an `assert!` included) is the bug signal.
 //!
 //! - [`glb()`]: the GLB container (split, rewritten byte for byte), then the whole scene path.
-//! - [`gltf()`]: the JSON parser, every accessor decoded, then the whole scene path, for GLB and
-//!   `.gltf` input alike, with no external resources.
+//! - [`gltf()`]: the JSON parser, the storage report's reading of a text without a tree against
+//!   the tree's, every accessor decoded, then the whole scene path, for GLB and `.gltf` input
+//!   alike, with no external resources.
 //! - [`obj()`]: OBJ text and an MTL (`a.mtl`), split at the first `0xFF` byte; the parallel
 //!   reader is checked against the sequential one on the text cut into a few chunks.
 //! - [`parts`]: a multipart upload, as length-prefixed records (see [`parts`]).
@@ -25,6 +26,7 @@ use tspace::scene::gltf::accessor::{self, ElementType};
 use tspace::scene::gltf::draco;
 use tspace::scene::gltf::glb as glb_container;
 use tspace::scene::gltf::load::{self, LoadLimits, NoResources};
+use tspace::scene::gltf::sizes;
 use tspace::scene::input::{self, InputKind};
 use tspace::scene::obj;
 use tspace::scene::uri::PartSet;
@@ -154,8 +156,21 @@ pub fn glb(data: &[u8]) {
 }
 
 /// The JSON parser and every accessor (up to 64) decoded in every way that applies, then the
-/// whole scene path with no resources; GLB (by its magic) and `.gltf` input alike.
+/// whole scene path with no resources; GLB (by its magic) and `.gltf` input alike. Any JSON the
+/// parser accepts is also measured from its text (`sizes::measure_text`, which the storage
+/// report runs on tspace's own output) and from its tree: the two must agree.
 pub fn gltf(data: &[u8]) {
+    let json = match glb_container::parse(data) {
+        Ok(glb) => glb.json,
+        Err(_) => data,
+    };
+    if let Ok(doc) = tspace_json::Document::parse(json) {
+        assert_eq!(
+            sizes::measure_text(json),
+            Some(sizes::measure(doc.root())),
+            "the text and the tree measure differently"
+        );
+    }
     if let Ok(loaded) = load::load(
         data,
         &NoResources,

@@ -79,8 +79,8 @@ pub fn process_with<'a>(
     internal: &Internal,
 ) -> Result<Processed, SceneError> {
     let (mut processed, sizes_in) = process_and_write(bytes, resources, options, internal)?;
-    // The input's tree, the computations and the edits are gone by now: the output's tree,
-    // parsed next, does not come on top of them.
+    // The input's tree, the computations and the edits are gone by now. The output is measured
+    // from its text, without a tree (`sizes::measure_text`).
     let json = match (&processed.bytes, &processed.pieces) {
         (Some(written), _) => Some(output_json(written, options.format)?),
         (None, Some(pieces)) => Some(match pieces.json() {
@@ -940,7 +940,7 @@ fn add_deltas(changes: &mut Changes, deltas: &[[f32; 3]], snorm: Option<Snorm>) 
 }
 
 /// Each primitive's storage in and out, and the scene's mesh bytes, from the input's sizes and
-/// (when written) the output's document, which is parsed again: the sizes are what the files
+/// (when written) the output's document, which is read again: the sizes are what the files
 /// declare.
 fn report_storage(
     report: &mut Report,
@@ -981,15 +981,12 @@ fn output_json(bytes: &[u8], format: OutputFormat) -> Result<&[u8], SceneError> 
 }
 
 fn output_sizes(json: &[u8]) -> Result<sizes::MeshSizes, SceneError> {
-    // Only what measuring reads: the whole tree of the output, beside the output itself and the
-    // report, would be this step's peak.
-    let root = tspace_json::parse_pruned(json, &sizes::read_by_measure).map_err(|e| {
+    sizes::measure_text(json).ok_or_else(|| {
         SceneError::new(
             ProblemCode::Internal,
-            format!("tspace's own output does not parse again: {e}"),
+            "tspace's own output does not read again as a glTF document",
         )
-    })?;
-    Ok(sizes::measure(&root))
+    })
 }
 
 fn why_storage_changed(

@@ -7,7 +7,8 @@
 //! view once, however many primitives share it. Images, animations and skins are not mesh bytes.
 
 use super::draco;
-use tspace_json::{Node, Text};
+use std::borrow::Cow;
+use tspace_json::{Node, Number};
 
 /// How a primitive's geometry is stored: the report's own type.
 pub use crate::scene::report::MeshCompression as Compression;
@@ -42,35 +43,144 @@ impl MeshSizes {
 
 /// Measures the mesh storage a document declares (lengths from the JSON; no bytes are read).
 pub fn measure(root: &Node) -> MeshSizes {
-    let views = array(root.get("bufferViews"));
-    let accessors = array(root.get("accessors"));
-    let meshes = array(root.get("meshes"));
-    let count = meshes
-        .iter()
-        .map(|mesh| array(mesh.get("primitives")).len())
-        .sum();
-    let mut sizes = MeshSizes {
-        primitives: Vec::with_capacity(count),
-        mesh_starts: Vec::with_capacity(meshes.len() + 1),
-        total: 0,
-    };
-    // Per view: whether some primitive reads it. A scene of 50,000 primitives measured each
-    // one's views in sets and maps; flat lists do the same without the allocations.
-    let mut read = vec![false; views.len()];
-    let mut used = Vec::new();
-    for mesh in meshes {
-        sizes.mesh_starts.push(sizes.primitives.len());
-        for primitive in array(mesh.get("primitives")) {
-            primitive_views(accessors, primitive, &mut used);
-            let meshopt = used.iter().any(|&v| meshopt_length(views.get(v)).is_some());
-            let compression = if draco::extension(primitive).is_some() {
+    Facts::of_tree(root).measure()
+}
+
+/// [`measure`] on a document's text, read without a tree: for tspace's own output, which the
+/// report measures after writing it. A tree of it, even of only the members measuring reads,
+/// cost a fifth of processing a scene of many small primitives (165 ms of 730 on the
+/// JSON-heavy scene). `None` when the text is not the JSON object it should be.
+pub fn measure_text(json: &[u8]) -> Option<MeshSizes> {
+    Some(Facts::of_text(json)?.measure())
+}
+
+/// What measuring reads of a document, in flat lists.
+#[derive(Debug, Default, PartialEq, Eq)]
+struct Facts {
+    /// Per buffer view: what it takes in the file, and whether that is meshopt-compressed.
+    views: Vec<(u64, bool)>,
+    /// Per accessor: the views it reads (its own, its sparse indices', its sparse values').
+    accessors: Vec<[Option<usize>; 3]>,
+    /// Per primitive, mesh by mesh: where its accessors end in `primitive_accessors`, and its
+    /// Draco stream (whether it has the extension, and the extension's view).
+    primitives: Vec<(usize, bool, Option<usize>)>,
+    /// The accessors of each primitive's attributes, targets and indices, in turn.
+    primitive_accessors: Vec<usize>,
+    /// Where each mesh's primitives start in `primitives`.
+    mesh_starts: Vec<usize>,
+}
+
+impl Facts {
+    fn of_tree(root: &Node) -> Facts {
+        let mut facts = Facts {
+            views: array(root.get("bufferViews"))
+                .iter()
+                .map(|view| (view_bytes(Some(view)), meshopt_length(Some(view)).is_some()))
+                .collect(),
+            accessors: array(root.get("accessors"))
+                .iter()
+                .map(|accessor| {
+                    let sparse = |part| index(accessor.get("sparse")?.get(part)?.get("bufferView"));
+                    [
+                        index(accessor.get("bufferView")),
+                        sparse("indices"),
+                        sparse("values"),
+                    ]
+                })
+                .collect(),
+            ..Facts::default()
+        };
+        for mesh in array(root.get("meshes")) {
+            facts.mesh_starts.push(facts.primitives.len());
+            for primitive in array(mesh.get("primitives")) {
+                let mut add_object = |object: Option<&Node>| {
+                    for member in object.and_then(Node::as_object).unwrap_or(&[]) {
+                        facts.primitive_accessors.extend(index(Some(&member.value)));
+                    }
+                };
+                add_object(primitive.get("attributes"));
+                for target in array(primitive.get("targets")) {
+                    add_object(Some(target));
+                }
+                facts
+                    .primitive_accessors
+                    .extend(index(primitive.get("indices")));
+                let draco = draco::extension(primitive);
+                facts.primitives.push((
+                    facts.primitive_accessors.len(),
+                    draco.is_some(),
+                    index(draco.and_then(|e| e.get("bufferView"))),
+                ));
+            }
+        }
+        facts
+    }
+
+    fn of_text(json: &[u8]) -> Option<Facts> {
+        let mut facts = Facts::default();
+        let mut text = Scanner::new(json);
+        let is_object = text.members(|text, key| match key.as_ref() {
+            b"bufferViews" => text.elements(|text| {
+                let view = text.view()?;
+                facts.views.push(view);
+                Some(())
+            }),
+            b"accessors" => text.elements(|text| {
+                let accessor = text.accessor()?;
+                facts.accessors.push(accessor);
+                Some(())
+            }),
+            b"meshes" => text.elements(|text| {
+                facts.mesh_starts.push(facts.primitives.len());
+                text.members(|text, key| match key.as_ref() {
+                    b"primitives" => text.elements(|text| text.primitive(&mut facts)),
+                    _ => text.skip(),
+                })
+                .map(drop)
+            }),
+            _ => text.skip(),
+        })?;
+        (is_object && text.at_end()).then_some(facts)
+    }
+
+    fn measure(&self) -> MeshSizes {
+        let mut sizes = MeshSizes {
+            primitives: Vec::with_capacity(self.primitives.len()),
+            mesh_starts: Vec::with_capacity(self.mesh_starts.len() + 1),
+            total: 0,
+        };
+        sizes.mesh_starts.extend(&self.mesh_starts);
+        sizes.mesh_starts.push(self.primitives.len());
+        // Per view: whether some primitive reads it. A scene of 50,000 primitives measured each
+        // one's views in sets and maps; flat lists do the same without the allocations.
+        let mut read = vec![false; self.views.len()];
+        let mut used = Vec::new();
+        let mut accessors_start = 0;
+        for &(accessors_end, draco, draco_view) in &self.primitives {
+            used.clear();
+            let accessors = self
+                .primitive_accessors
+                .get(accessors_start..accessors_end)
+                .unwrap_or(&[]);
+            accessors_start = accessors_end;
+            for &a in accessors {
+                used.extend(self.accessors.get(a).into_iter().flatten().flatten());
+            }
+            used.extend(draco_view);
+            used.sort_unstable();
+            used.dedup();
+            let meshopt = used.iter().any(|&v| self.views.get(v).is_some_and(|v| v.1));
+            let compression = if draco {
                 Compression::Draco
             } else if meshopt {
                 Compression::Meshopt
             } else {
                 Compression::None
             };
-            let bytes = used.iter().map(|&v| view_bytes(views.get(v))).sum();
+            let bytes = used
+                .iter()
+                .map(|&v| self.views.get(v).map_or(0, |v| v.0))
+                .sum();
             sizes.primitives.push(PrimitiveSize { compression, bytes });
             for &v in &used {
                 if let Some(read) = read.get_mut(v) {
@@ -78,47 +188,11 @@ pub fn measure(root: &Node) -> MeshSizes {
                 }
             }
         }
-    }
-    sizes.mesh_starts.push(sizes.primitives.len());
-    sizes.total = (views.iter().zip(&read))
-        .filter(|&(_, &read)| read)
-        .map(|(view, _)| view_bytes(Some(view)))
-        .sum();
-    sizes
-}
-
-/// The members [`measure`] reads, for [`tspace_json::parse_pruned`]: a document read only to be
-/// measured (tspace's own output) then takes a fraction of its whole tree.
-pub fn read_by_measure(path: &[Text], key: &str) -> bool {
-    const MESHOPT: [&[u8]; 2] = [b"EXT_meshopt_compression", b"KHR_meshopt_compression"];
-    const DRACO: &[u8] = draco::EXTENSION.as_bytes();
-    // Steps as bytes: this is asked of every member of the output's kept objects, and reading
-    // each step as a `str` checked it as UTF-8 again, a tenth of the parse.
-    let mut steps: [&[u8]; 4] = [b""; 4];
-    for (step, text) in steps.iter_mut().zip(path) {
-        *step = text.as_bytes();
-    }
-    let key = key.as_bytes();
-    match (path.len(), steps) {
-        (0, _) => matches!(key, b"meshes" | b"accessors" | b"bufferViews"),
-        (1, [b"meshes", ..]) => key == b"primitives",
-        (2, [b"meshes", b"primitives", ..]) => {
-            matches!(key, b"attributes" | b"targets" | b"indices" | b"extensions")
-        }
-        (3, [b"meshes", b"primitives", b"attributes" | b"targets", _]) => true,
-        (3, [b"meshes", b"primitives", b"extensions", _]) => key == DRACO,
-        (4, [b"meshes", b"primitives", b"extensions", name]) => {
-            name == DRACO && key == b"bufferView"
-        }
-        (1, [b"accessors", ..]) => matches!(key, b"bufferView" | b"sparse"),
-        (2, [b"accessors", b"sparse", ..]) => matches!(key, b"indices" | b"values"),
-        (3, [b"accessors", b"sparse", b"indices" | b"values", _]) => key == b"bufferView",
-        (1, [b"bufferViews", ..]) => matches!(key, b"byteLength" | b"extensions"),
-        (2, [b"bufferViews", b"extensions", ..]) => MESHOPT.contains(&key),
-        (3, [b"bufferViews", b"extensions", name, _]) => {
-            MESHOPT.contains(&name) && key == b"byteLength"
-        }
-        _ => false,
+        sizes.total = (self.views.iter().zip(&read))
+            .filter(|&(_, &read)| read)
+            .map(|(view, _)| view.0)
+            .sum();
+        sizes
     }
 }
 
@@ -130,42 +204,10 @@ fn index(node: Option<&Node>) -> Option<usize> {
     node?.as_u64().and_then(|i| usize::try_from(i).ok())
 }
 
-/// The views a primitive reads, each once, into `views`: its accessors' (and their sparse
-/// parts'), and its Draco stream's.
-fn primitive_views(accessors: &[Node], primitive: &Node, views: &mut Vec<usize>) {
-    views.clear();
-    let mut add_accessor = |accessor: Option<&Node>| {
-        let Some(accessor) = accessor else {
-            return;
-        };
-        views.extend(index(accessor.get("bufferView")));
-        if let Some(sparse) = accessor.get("sparse") {
-            for part in ["indices", "values"] {
-                views.extend(index(sparse.get(part).and_then(|p| p.get("bufferView"))));
-            }
-        }
-    };
-    let mut add_object = |object: Option<&Node>| {
-        for member in object.and_then(Node::as_object).unwrap_or(&[]) {
-            add_accessor(index(Some(&member.value)).and_then(|a| accessors.get(a)));
-        }
-    };
-    add_object(primitive.get("attributes"));
-    for target in array(primitive.get("targets")) {
-        add_object(Some(target));
-    }
-    add_accessor(index(primitive.get("indices")).and_then(|a| accessors.get(a)));
-    views.extend(index(
-        draco::extension(primitive).and_then(|e| e.get("bufferView")),
-    ));
-    views.sort_unstable();
-    views.dedup();
-}
-
 /// A meshopt-compressed view's compressed length.
 fn meshopt_length(view: Option<&Node>) -> Option<u64> {
     let extensions = view?.get("extensions")?;
-    ["EXT_meshopt_compression", "KHR_meshopt_compression"]
+    MESHOPT
         .iter()
         .find_map(|name| extensions.get(name)?.get("byteLength")?.as_u64())
 }
@@ -175,6 +217,313 @@ fn view_bytes(view: Option<&Node>) -> u64 {
     meshopt_length(view)
         .or_else(|| view?.get("byteLength")?.as_u64())
         .unwrap_or(0)
+}
+
+const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
+
+/// A reader of a JSON text that was parsed and checked before (tspace's own output): it walks
+/// the members measuring reads and skips the rest by their brackets, allocating nothing but
+/// what it keeps. It reads numbers and keys as the parser does ([`Number::from_text`], escapes
+/// decoded), so that it finds what [`Facts::of_tree`] finds; every method consumes exactly one
+/// value, and `None` means the text is not JSON after all.
+struct Scanner<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Scanner<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        let bom = b"\xEF\xBB\xBF";
+        let mut scanner = Scanner {
+            bytes,
+            pos: if bytes.starts_with(bom) { bom.len() } else { 0 },
+        };
+        scanner.skip_ws();
+        scanner
+    }
+
+    fn skip_ws(&mut self) {
+        while let Some(b' ' | b'\t' | b'\n' | b'\r') = self.bytes.get(self.pos) {
+            self.pos += 1;
+        }
+    }
+
+    fn at_end(&mut self) -> bool {
+        self.skip_ws();
+        self.pos == self.bytes.len()
+    }
+
+    fn peek(&self) -> Option<u8> {
+        self.bytes.get(self.pos).copied()
+    }
+
+    fn eat(&mut self, byte: u8) -> Option<()> {
+        self.skip_ws();
+        (self.peek()? == byte).then(|| self.pos += 1)
+    }
+
+    /// A string's text between its quotes, escapes as written; and whether it has any.
+    fn raw_string(&mut self) -> Option<(&'a [u8], bool)> {
+        self.eat(b'"')?;
+        let start = self.pos;
+        let mut escaped = false;
+        loop {
+            match *self.bytes.get(self.pos)? {
+                b'"' => break,
+                b'\\' => {
+                    escaped = true;
+                    self.pos += 2;
+                }
+                _ => self.pos += 1,
+            }
+        }
+        let text = self.bytes.get(start..self.pos)?;
+        self.pos += 1;
+        Some((text, escaped))
+    }
+
+    /// A key, decoded when it has escapes (`"by\u0074eLength"` is `byteLength`).
+    fn key(&mut self) -> Option<Cow<'a, [u8]>> {
+        let start = self.pos;
+        let (raw, escaped) = self.raw_string()?;
+        if !escaped {
+            return Some(Cow::Borrowed(raw));
+        }
+        let quoted = self.bytes.get(start..self.pos)?;
+        let decoded: String = serde_json::from_slice(quoted).ok()?;
+        Some(Cow::Owned(decoded.into_bytes()))
+    }
+
+    /// Calls `each` with every member's key, `each` reading its value. `Some(false)` (and the
+    /// value skipped) when the value is not an object.
+    fn members(
+        &mut self,
+        mut each: impl FnMut(&mut Self, Cow<'a, [u8]>) -> Option<()>,
+    ) -> Option<bool> {
+        self.skip_ws();
+        if self.peek()? != b'{' {
+            self.skip()?;
+            return Some(false);
+        }
+        self.pos += 1;
+        self.skip_ws();
+        if self.peek()? == b'}' {
+            self.pos += 1;
+            return Some(true);
+        }
+        loop {
+            self.skip_ws();
+            let key = self.key()?;
+            self.eat(b':')?;
+            each(self, key)?;
+            self.skip_ws();
+            match self.peek()? {
+                b',' => self.pos += 1,
+                b'}' => {
+                    self.pos += 1;
+                    return Some(true);
+                }
+                _ => return None,
+            }
+        }
+    }
+
+    /// Calls `each` to read every element. `Some(false)` (and the value skipped) when the
+    /// value is not an array.
+    fn elements(&mut self, mut each: impl FnMut(&mut Self) -> Option<()>) -> Option<()> {
+        self.skip_ws();
+        if self.peek()? != b'[' {
+            return self.skip();
+        }
+        self.pos += 1;
+        self.skip_ws();
+        if self.peek()? == b']' {
+            self.pos += 1;
+            return Some(());
+        }
+        loop {
+            each(self)?;
+            self.skip_ws();
+            match self.peek()? {
+                b',' => self.pos += 1,
+                b']' => {
+                    self.pos += 1;
+                    return Some(());
+                }
+                _ => return None,
+            }
+        }
+    }
+
+    /// Any value, read past.
+    fn skip(&mut self) -> Option<()> {
+        self.skip_ws();
+        match self.peek()? {
+            b'"' => self.raw_string().map(drop),
+            b'{' | b'[' => {
+                let mut depth = 0usize;
+                loop {
+                    match *self.bytes.get(self.pos)? {
+                        b'"' => {
+                            self.raw_string()?;
+                            continue;
+                        }
+                        b'{' | b'[' => depth += 1,
+                        b'}' | b']' => {
+                            depth -= 1;
+                            if depth == 0 {
+                                self.pos += 1;
+                                return Some(());
+                            }
+                        }
+                        _ => {}
+                    }
+                    self.pos += 1;
+                }
+            }
+            _ => self.scalar().map(drop),
+        }
+    }
+
+    /// A number's, `true`'s, `false`'s or `null`'s text.
+    fn scalar(&mut self) -> Option<&'a [u8]> {
+        let start = self.pos;
+        while let Some(byte) = self.peek() {
+            if matches!(byte, b',' | b'}' | b']' | b' ' | b'\t' | b'\n' | b'\r') {
+                break;
+            }
+            self.pos += 1;
+        }
+        (self.pos > start)
+            .then(|| self.bytes.get(start..self.pos))
+            .flatten()
+    }
+
+    /// A value read as [`Node::as_u64`] reads it: a number that is an integer, else `None`
+    /// (and the value skipped).
+    fn length(&mut self) -> Option<Option<u64>> {
+        self.skip_ws();
+        if !matches!(self.peek()?, b'-' | b'0'..=b'9') {
+            self.skip()?;
+            return Some(None);
+        }
+        let text = std::str::from_utf8(self.scalar()?).ok()?;
+        Some(Number::from_text(text)?.as_u64())
+    }
+
+    /// A value read as [`index`] reads it.
+    fn index(&mut self) -> Option<Option<usize>> {
+        Some(self.length()?.and_then(|i| usize::try_from(i).ok()))
+    }
+
+    /// A buffer view's entry in [`Facts::views`].
+    fn view(&mut self) -> Option<(u64, bool)> {
+        let (mut length, mut compressed) = (None, [None, None]);
+        self.members(|text, key| match key.as_ref() {
+            b"byteLength" => {
+                length = text.length()?;
+                Some(())
+            }
+            b"extensions" => text
+                .members(|text, key| {
+                    match MESHOPT
+                        .iter()
+                        .position(|name| name.as_bytes() == key.as_ref())
+                    {
+                        Some(which) => text
+                            .members(|text, key| match key.as_ref() {
+                                b"byteLength" => {
+                                    compressed[which] = text.length()?;
+                                    Some(())
+                                }
+                                _ => text.skip(),
+                            })
+                            .map(drop),
+                        None => text.skip(),
+                    }
+                })
+                .map(drop),
+            _ => text.skip(),
+        })?;
+        let compressed = compressed[0].or(compressed[1]);
+        Some((compressed.or(length).unwrap_or(0), compressed.is_some()))
+    }
+
+    /// An accessor's entry in [`Facts::accessors`].
+    fn accessor(&mut self) -> Option<[Option<usize>; 3]> {
+        let mut views = [None; 3];
+        self.members(|text, key| match key.as_ref() {
+            b"bufferView" => {
+                views[0] = text.index()?;
+                Some(())
+            }
+            b"sparse" => text
+                .members(|text, key| {
+                    let part = match key.as_ref() {
+                        b"indices" => 1,
+                        b"values" => 2,
+                        _ => return text.skip(),
+                    };
+                    text.members(|text, key| match key.as_ref() {
+                        b"bufferView" => {
+                            views[part] = text.index()?;
+                            Some(())
+                        }
+                        _ => text.skip(),
+                    })
+                    .map(drop)
+                })
+                .map(drop),
+            _ => text.skip(),
+        })?;
+        Some(views)
+    }
+
+    /// A primitive's entries in [`Facts::primitives`] and [`Facts::primitive_accessors`].
+    fn primitive(&mut self, facts: &mut Facts) -> Option<()> {
+        // Read in the order of the text, kept in the order of [`Facts::of_tree`].
+        let (mut attributes, mut targets, mut indices) = (Vec::new(), Vec::new(), None);
+        let (mut draco, mut draco_view) = (false, None);
+        let accessors_of = |text: &mut Self, into: &mut Vec<usize>| {
+            text.members(|text, _| {
+                into.extend(text.index()?);
+                Some(())
+            })
+            .map(drop)
+        };
+        self.members(|text, key| match key.as_ref() {
+            b"attributes" => accessors_of(text, &mut attributes),
+            b"targets" => text.elements(|text| accessors_of(text, &mut targets)),
+            b"indices" => {
+                indices = text.index()?;
+                Some(())
+            }
+            b"extensions" => text
+                .members(|text, key| {
+                    if key.as_ref() != draco::EXTENSION.as_bytes() {
+                        return text.skip();
+                    }
+                    draco = true;
+                    text.members(|text, key| match key.as_ref() {
+                        b"bufferView" => {
+                            draco_view = text.index()?;
+                            Some(())
+                        }
+                        _ => text.skip(),
+                    })
+                    .map(drop)
+                })
+                .map(drop),
+            _ => text.skip(),
+        })?;
+        facts.primitive_accessors.extend(attributes);
+        facts.primitive_accessors.extend(targets);
+        facts.primitive_accessors.extend(indices);
+        facts
+            .primitives
+            .push((facts.primitive_accessors.len(), draco, draco_view));
+        Some(())
+    }
 }
 
 #[cfg(test)]
@@ -224,18 +573,61 @@ mod tests {
         assert_eq!(sizes.primitive((1, 0)), None);
         // View 3 is no mesh's.
         assert_eq!(sizes.total, 153);
-        // Read with only the members it needs, the document measures the same.
-        let pruned = tspace_json::parse_pruned(text, &read_by_measure).unwrap();
-        assert_eq!(measure(&pruned), sizes);
-        assert!(
-            pruned
-                .get("meshes")
-                .unwrap()
-                .index(0)
-                .unwrap()
-                .get("name")
-                .is_none()
-        );
+        // Read from the text without a tree, the document measures the same.
+        assert_eq!(Facts::of_text(text), Some(Facts::of_tree(doc.root())));
+        assert_eq!(measure_text(text), Some(sizes));
+    }
+
+    #[test]
+    fn the_text_and_the_tree_find_the_same_in_every_fixture() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+        let mut files = vec![root];
+        let mut measured = 0;
+        while let Some(path) = files.pop() {
+            if path.is_dir() {
+                files.extend(std::fs::read_dir(&path).unwrap().map(|e| e.unwrap().path()));
+                continue;
+            }
+            let bytes = std::fs::read(&path).unwrap();
+            let json = match path.extension().and_then(|e| e.to_str()) {
+                Some("glb") => match super::super::glb::parse(&bytes) {
+                    Ok(glb) => glb.json.to_vec(),
+                    Err(_) => continue,
+                },
+                Some("gltf") => bytes,
+                _ => continue,
+            };
+            let Ok(doc) = Document::parse(&json) else {
+                continue;
+            };
+            let from_tree = Facts::of_tree(doc.root());
+            assert_eq!(Facts::of_text(&json), Some(from_tree), "{}", path.display());
+            measured += 1;
+        }
+        assert!(measured >= 20, "{measured} fixtures measured");
+    }
+
+    #[test]
+    fn the_text_is_read_as_the_parser_reads_it() {
+        // Escaped keys, integers spelled as floats, values of the wrong kind, a BOM, and
+        // members measuring skips holding brackets in strings.
+        let text = "\u{feff} {\"extras\": {\"a]\": \"}{\\\"[\"}, \"bufferViews\": [
+            {\"by\\u0074eLength\": 1.0e2, \"extensions\": {\"KHR_meshopt_compression\":
+                {\"byteLength\": 30}, \"EXT_meshopt_compression\": {\"byteLength\": \"40\"}}},
+            {\"byteLength\": -0}, {\"byteLength\": 1.5}, 7, {\"byteLength\": 18446744073709551616}],
+            \"accessors\": [{\"bufferView\": 0, \"sparse\": {\"indices\": {\"bufferView\": 1},
+                \"values\": {\"bufferView\": 2e0}}}, [], {\"bufferView\": null}],
+            \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0, \"X\": \"1\"},
+                \"targets\": [{\"POSITION\": 2}, 5], \"indices\": 1.0,
+                \"extensions\": {\"KHR_draco_mesh_compression\": {\"bufferView\": 3}}},
+                {}, 4]}, {\"primitives\": {}}, 3, {}]}";
+        let doc = Document::parse(text.as_bytes()).unwrap();
+        let from_tree = Facts::of_tree(doc.root());
+        assert_eq!(from_tree.views[0], (30, true));
+        assert_eq!(Facts::of_text(text.as_bytes()), Some(from_tree));
+        assert_eq!(Facts::of_text(b"[1, 2]"), None);
+        assert_eq!(Facts::of_text(b"{\"meshes\": [} "), None);
+        assert_eq!(Facts::of_text(b"{} {}"), None);
     }
 
     #[test]
