@@ -221,6 +221,18 @@ fn view_bytes(view: Option<&Node>) -> u64 {
 
 const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
 
+/// The bytes that start or end a string or a container: what [`Scanner::skip`] stops at.
+const STRUCTURAL: [bool; 256] = {
+    let mut table = [false; 256];
+    let mut i = 0;
+    let bytes = *b"\"{}[]";
+    while i < bytes.len() {
+        table[bytes[i] as usize] = true;
+        i += 1;
+    }
+    table
+};
+
 /// A reader of a JSON text that was parsed and checked before (tspace's own output): it walks
 /// the members measuring reads and skips the rest by their brackets, allocating nothing but
 /// what it keeps. It reads numbers and keys as the parser does ([`Number::from_text`], escapes
@@ -361,22 +373,30 @@ impl<'a> Scanner<'a> {
         match self.peek()? {
             b'"' => self.raw_string().map(drop),
             b'{' | b'[' => {
+                let bytes = self.bytes;
                 let mut depth = 0usize;
                 loop {
-                    match *self.bytes.get(self.pos)? {
+                    // Numbers, commas, colons and spaces, most of what is skipped, a byte a
+                    // step with one test each.
+                    while bytes
+                        .get(self.pos)
+                        .is_some_and(|&b| !STRUCTURAL[usize::from(b)])
+                    {
+                        self.pos += 1;
+                    }
+                    match *bytes.get(self.pos)? {
                         b'"' => {
                             self.raw_string()?;
                             continue;
                         }
                         b'{' | b'[' => depth += 1,
-                        b'}' | b']' => {
+                        _ => {
                             depth -= 1;
                             if depth == 0 {
                                 self.pos += 1;
                                 return Some(());
                             }
                         }
-                        _ => {}
                     }
                     self.pos += 1;
                 }
@@ -407,8 +427,16 @@ impl<'a> Scanner<'a> {
             self.skip()?;
             return Some(None);
         }
-        let text = std::str::from_utf8(self.scalar()?).ok()?;
-        Some(Number::from_text(text)?.as_u64())
+        let text = self.scalar()?;
+        // Plain digits, as nearly every index and length is spelled, read at once; the text
+        // was checked, so they are a JSON number (19 always fit).
+        if text.len() <= 19 && text.iter().all(u8::is_ascii_digit) {
+            return Some(Some(
+                text.iter()
+                    .fold(0u64, |value, &digit| 10 * value + u64::from(digit - b'0')),
+            ));
+        }
+        Some(Number::from_text(std::str::from_utf8(text).ok()?)?.as_u64())
     }
 
     /// A value read as [`index`] reads it.
