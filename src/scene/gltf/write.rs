@@ -784,6 +784,14 @@ fn orphan_views(
         .get("bufferViews")
         .and_then(Node::as_array)
         .map_or(0, <[Node]>::len);
+    // Usually nothing that refers to a view goes away (TANGENT is added beside what was
+    // there), and then no view is orphaned. The walk below reads every view reference's node
+    // again, scattered over the tree: 21 ms for the 200,000 of the JSON-heavy scene.
+    let anything_dies =
+        orphan_accessor.contains(&true) || changes.primitives.values().any(|e| e.remove_draco);
+    if !anything_dies {
+        return vec![false; count];
+    }
     let mut view_before = vec![false; count];
     let mut view_after = vec![false; count];
     for &(owner, node) in references {
@@ -1245,6 +1253,10 @@ fn renumber_view_refs(
     numbering: &Numbering,
     changes: &Changes,
 ) -> Result<(), SceneError> {
+    if numbering.kept_views == numbering.view_map.len() {
+        // No view is dropped: every view keeps its index.
+        return Ok(());
+    }
     for &(owner, node) in &references.views {
         let v = refs::held(node);
         let alive = match owner {
