@@ -7,6 +7,7 @@
 //! view once, however many primitives share it. Images, animations and skins are not mesh bytes.
 
 use super::draco;
+use crate::scene::index32;
 use std::borrow::Cow;
 use tspace_json::{Node, Number};
 
@@ -60,12 +61,14 @@ struct Facts {
     /// Per buffer view: what it takes in the file, and whether that is meshopt-compressed.
     views: Vec<(u64, bool)>,
     /// Per accessor: the views it reads (its own, its sparse indices', its sparse values').
-    accessors: Vec<[Option<usize>; 3]>,
+    accessors: Vec<[Option<u32>; 3]>,
     /// Per primitive, mesh by mesh: where its accessors end in `primitive_accessors`, and its
     /// Draco stream (whether it has the extension, and the extension's view).
-    primitives: Vec<(usize, bool, Option<usize>)>,
-    /// The accessors of each primitive's attributes, targets and indices, in turn.
-    primitive_accessors: Vec<usize>,
+    primitives: Vec<(u32, bool, Option<u32>)>,
+    /// The accessors of each primitive's attributes, targets and indices, in turn. Positions
+    /// are 32-bit ([`index32`]): the output's lists are measured beside the output and the
+    /// report, and a scene of 100,000 primitives holds half a million of them.
+    primitive_accessors: Vec<u32>,
     /// Where each mesh's primitives start in `primitives`.
     mesh_starts: Vec<usize>,
 }
@@ -107,7 +110,7 @@ impl Facts {
                     .extend(index(primitive.get("indices")));
                 let draco = draco::extension(primitive);
                 facts.primitives.push((
-                    facts.primitive_accessors.len(),
+                    index32(facts.primitive_accessors.len()),
                     draco.is_some(),
                     index(draco.and_then(|e| e.get("bufferView"))),
                 ));
@@ -154,19 +157,22 @@ impl Facts {
         // Per view: whether some primitive reads it. A scene of 50,000 primitives measured each
         // one's views in sets and maps; flat lists do the same without the allocations.
         let mut read = vec![false; self.views.len()];
-        let mut used = Vec::new();
+        let mut used: Vec<usize> = Vec::new();
         let mut accessors_start = 0;
+        let at = |i: u32| usize::try_from(i).unwrap_or(usize::MAX);
         for &(accessors_end, draco, draco_view) in &self.primitives {
             used.clear();
+            let accessors_end = at(accessors_end);
             let accessors = self
                 .primitive_accessors
                 .get(accessors_start..accessors_end)
                 .unwrap_or(&[]);
             accessors_start = accessors_end;
             for &a in accessors {
-                used.extend(self.accessors.get(a).into_iter().flatten().flatten());
+                let views = self.accessors.get(at(a)).into_iter().flatten().flatten();
+                used.extend(views.map(|&v| at(v)));
             }
-            used.extend(draco_view);
+            used.extend(draco_view.map(at));
             used.sort_unstable();
             used.dedup();
             let meshopt = used.iter().any(|&v| self.views.get(v).is_some_and(|v| v.1));
@@ -200,8 +206,9 @@ fn array(node: Option<&Node>) -> &[Node] {
     node.and_then(Node::as_array).unwrap_or(&[])
 }
 
-fn index(node: Option<&Node>) -> Option<usize> {
-    node?.as_u64().and_then(|i| usize::try_from(i).ok())
+/// An index into one of the document's arrays; one past 32 bits is past every array's end.
+fn index(node: Option<&Node>) -> Option<u32> {
+    node?.as_u64().and_then(|i| u32::try_from(i).ok())
 }
 
 /// A meshopt-compressed view's compressed length.
@@ -440,8 +447,8 @@ impl<'a> Scanner<'a> {
     }
 
     /// A value read as [`index`] reads it.
-    fn index(&mut self) -> Option<Option<usize>> {
-        Some(self.length()?.and_then(|i| usize::try_from(i).ok()))
+    fn index(&mut self) -> Option<Option<u32>> {
+        Some(self.length()?.and_then(|i| u32::try_from(i).ok()))
     }
 
     /// A buffer view's entry in [`Facts::views`].
@@ -478,7 +485,7 @@ impl<'a> Scanner<'a> {
     }
 
     /// An accessor's entry in [`Facts::accessors`].
-    fn accessor(&mut self) -> Option<[Option<usize>; 3]> {
+    fn accessor(&mut self) -> Option<[Option<u32>; 3]> {
         let mut views = [None; 3];
         self.members(|text, key| match key.as_ref() {
             b"bufferView" => {
@@ -512,7 +519,7 @@ impl<'a> Scanner<'a> {
         // Read in the order of the text, kept in the order of [`Facts::of_tree`].
         let (mut attributes, mut targets, mut indices) = (Vec::new(), Vec::new(), None);
         let (mut draco, mut draco_view) = (false, None);
-        let accessors_of = |text: &mut Self, into: &mut Vec<usize>| {
+        let accessors_of = |text: &mut Self, into: &mut Vec<u32>| {
             text.members(|text, _| {
                 into.extend(text.index()?);
                 Some(())
@@ -549,7 +556,7 @@ impl<'a> Scanner<'a> {
         facts.primitive_accessors.extend(indices);
         facts
             .primitives
-            .push((facts.primitive_accessors.len(), draco, draco_view));
+            .push((index32(facts.primitive_accessors.len()), draco, draco_view));
         Some(())
     }
 }
