@@ -847,8 +847,16 @@ fn tangent_snorm(scene: &Scene<'_>, key: &GeometryKey, c: &Computed) -> Option<S
     if scene.tangents == TangentType::Float || c.tangents.normals.is_some() {
         return None;
     }
-    let normal = scene.data.accessor(scene.root, key.normal?).ok()?;
-    match (normal.component_type, normal.normalized) {
+    // The two members alone: the whole accessor's description (its view looked up and
+    // checked) was a twentieth of a JSON-heavy scene's run, once per primitive. The normals
+    // were read through that description already, so it is valid.
+    let normal = scene.root.get("accessors")?.index(key.normal?)?;
+    let component_type = normal.get("componentType")?.as_u64()?;
+    let normalized = normal.get("normalized").and_then(Node::as_bool) == Some(true);
+    match (
+        accessor::ComponentType::from_code(component_type)?,
+        normalized,
+    ) {
         (accessor::ComponentType::I8, true) => Some(Snorm::I8),
         (accessor::ComponentType::I16, true) => Some(Snorm::I16),
         _ => None,
