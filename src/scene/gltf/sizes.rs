@@ -499,19 +499,26 @@ impl<'a> Scanner<'a> {
                         b"values" => 2,
                         _ => return text.skip(),
                     };
-                    text.members(|text, key| match key.as_ref() {
-                        b"bufferView" => {
-                            views[part] = text.index()?;
-                            Some(())
-                        }
-                        _ => text.skip(),
-                    })
-                    .map(drop)
+                    views[part] = text.buffer_view()?;
+                    Some(())
                 })
                 .map(drop),
             _ => text.skip(),
         })?;
         Some(views)
+    }
+
+    /// An object's `bufferView`, read as [`index`] reads it; the rest of the object skipped.
+    fn buffer_view(&mut self) -> Option<Option<u32>> {
+        let mut view = None;
+        self.members(|text, key| match key.as_ref() {
+            b"bufferView" => {
+                view = text.index()?;
+                Some(())
+            }
+            _ => text.skip(),
+        })?;
+        Some(view)
     }
 
     /// A primitive's entries in [`Facts::primitives`] and [`Facts::primitive_accessors`].
@@ -539,14 +546,8 @@ impl<'a> Scanner<'a> {
                         return text.skip();
                     }
                     draco = true;
-                    text.members(|text, key| match key.as_ref() {
-                        b"bufferView" => {
-                            draco_view = text.index()?;
-                            Some(())
-                        }
-                        _ => text.skip(),
-                    })
-                    .map(drop)
+                    draco_view = text.buffer_view()?;
+                    Some(())
                 })
                 .map(drop),
             _ => text.skip(),
