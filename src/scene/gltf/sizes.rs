@@ -565,7 +565,140 @@ impl<'a> Scanner<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
     use tspace_json::Document;
+
+    /// Numbers as JSON may spell them, integers or not, and past 32 and 64 bits.
+    fn number() -> BoxedStrategy<String> {
+        let spellings = vec![
+            "0",
+            "1",
+            "2",
+            "3",
+            "4",
+            "3.0",
+            "1e1",
+            "2E0",
+            "-0",
+            "-3",
+            "1.5",
+            "0.0e5",
+            "4294967296",
+            "18446744073709551616",
+        ];
+        prop::sample::select(spellings)
+            .prop_map(String::from)
+            .boxed()
+    }
+
+    /// Values of the wrong kind, strings with brackets and escapes among them.
+    fn junk() -> BoxedStrategy<String> {
+        let values = vec![
+            "null",
+            "true",
+            "false",
+            "\"s\"",
+            r#""a]}\"[{""#,
+            "[]",
+            "{}",
+            r#"[1, [2, {"x": 3}]]"#,
+            r#""\u0041""#,
+            r#"{"bufferView": 1}"#,
+        ];
+        prop::sample::select(values).prop_map(String::from).boxed()
+    }
+
+    fn or_junk(value: BoxedStrategy<String>) -> BoxedStrategy<String> {
+        prop_oneof![6 => value, 1 => junk()].boxed()
+    }
+
+    fn index() -> BoxedStrategy<String> {
+        or_junk(number())
+    }
+
+    /// `"key"`, or with one of its characters escaped.
+    fn key(key: &'static str) -> BoxedStrategy<String> {
+        (any::<bool>(), 0..key.len())
+            .prop_map(move |(escaped, at)| {
+                if !escaped {
+                    return format!("\"{key}\"");
+                }
+                let (before, rest) = key.split_at(at);
+                let mut chars = rest.chars();
+                let c = chars.next().unwrap_or('x');
+                format!("\"{before}\\u{:04x}{}\"", u32::from(c), chars.as_str())
+            })
+            .boxed()
+    }
+
+    /// An object with some of `members`, and a member measuring skips.
+    fn object(members: Vec<(&'static str, BoxedStrategy<String>)>) -> BoxedStrategy<String> {
+        let mut parts: Vec<BoxedStrategy<Option<String>>> = members
+            .into_iter()
+            .map(|(name, value)| {
+                prop::option::weighted(0.8, (key(name), value))
+                    .prop_map(|m| m.map(|(k, v)| format!("{k}: {v}")))
+                    .boxed()
+            })
+            .collect();
+        parts.push(
+            prop::option::of(junk())
+                .prop_map(|v| v.map(|v| format!("\"extras\":{v}")))
+                .boxed(),
+        );
+        parts
+            .prop_map(|members| {
+                let members: Vec<String> = members.into_iter().flatten().collect();
+                format!("{{ {} }}", members.join(",\n"))
+            })
+            .boxed()
+    }
+
+    fn array(element: BoxedStrategy<String>) -> BoxedStrategy<String> {
+        prop::collection::vec(element, 0..4)
+            .prop_map(|elements| format!("[{}]", elements.join(", ")))
+            .boxed()
+    }
+
+    fn document() -> BoxedStrategy<String> {
+        let compressed = || or_junk(object(vec![("byteLength", index())]));
+        let extensions = or_junk(object(vec![
+            ("EXT_meshopt_compression", compressed()),
+            ("KHR_meshopt_compression", compressed()),
+        ]));
+        let view = or_junk(object(vec![
+            ("byteLength", index()),
+            ("extensions", extensions),
+        ]));
+        let part = || or_junk(object(vec![("bufferView", index())]));
+        let sparse = or_junk(object(vec![("indices", part()), ("values", part())]));
+        let accessor = or_junk(object(vec![("bufferView", index()), ("sparse", sparse)]));
+        let attributes = || or_junk(object(vec![("POSITION", index()), ("NORMAL", index())]));
+        let draco = or_junk(object(vec![(draco::EXTENSION, part())]));
+        let primitive = or_junk(object(vec![
+            ("attributes", attributes()),
+            ("targets", or_junk(array(attributes()))),
+            ("indices", index()),
+            ("extensions", draco),
+        ]));
+        let mesh = or_junk(object(vec![("primitives", or_junk(array(primitive)))]));
+        object(vec![
+            ("bufferViews", or_junk(array(view))),
+            ("accessors", or_junk(array(accessor))),
+            ("meshes", or_junk(array(mesh))),
+        ])
+    }
+
+    proptest! {
+        #[test]
+        fn the_text_is_measured_as_its_tree_is(text in document()) {
+            // Only what the parser accepts is ever read from its text.
+            if let Ok(doc) = Document::parse(text.as_bytes()) {
+                let from_tree = Facts::of_tree(doc.root());
+                prop_assert_eq!(Facts::of_text(text.as_bytes()), Some(from_tree), "{}", text);
+            }
+        }
+    }
 
     #[test]
     fn shared_views_count_once_in_the_total_and_compressed_views_at_their_compressed_size() {
