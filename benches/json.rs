@@ -142,7 +142,7 @@ fn main() {
         );
     }
     println!(
-        "  ratios: whole parse / serde_json Value {:.2}; pruned / whole (per byte) {:.2}; checked only / serde_json IgnoredAny {:.2}",
+        "  ratios: whole parse / serde_json Value {:.2}; measured / whole (per byte) {:.2}; checked only / serde_json IgnoredAny {:.2}",
         medians[0] / medians[1],
         (medians[2] / json_out.len() as f64) / (medians[0] / json_in.len() as f64),
         medians[3] / medians[4],

@@ -2674,7 +2674,6 @@ fn list_meshopt<'d>(
     Ok(())
 }
 
-/// The report's line on what this write compressed: each view's mode, and its filter and why.
 /// Up to this many compressed views, the notice names each with its encoding. Past it, a
 /// scene of many small views would make the notice the largest part of the report (250,000
 /// views: 7 MB, and a fifth of the write), and no one reads such a list: it counts the views
@@ -2682,7 +2681,7 @@ fn list_meshopt<'d>(
 const VIEWS_NAMED: usize = 20;
 
 /// `ATTRIBUTES`, or `ATTRIBUTES with filter OCTAHEDRAL`.
-fn encoding(mode: &str, filter: Option<&str>) -> String {
+fn mode_and_filter(mode: &str, filter: Option<&str>) -> String {
     match filter {
         Some(f) => format!("{mode} with filter {f}"),
         None => mode.to_owned(),
@@ -2735,13 +2734,14 @@ fn views_by_encoding(views: &[(usize, &'static str, Option<&'static str>)]) -> S
         format!(
             "{} {}: {}{more}",
             thousands(g.count as u64),
-            encoding(g.mode, g.filter),
+            mode_and_filter(g.mode, g.filter),
             named.join(", ")
         )
     };
     groups.iter().map(describe).collect::<Vec<_>>().join("; ")
 }
 
+/// The report's line on what this write compressed: each view's mode, and its filter and why.
 fn describe_compression(
     views: &[(usize, &'static str, Option<&'static str>)],
     packed: Option<&Packed>,
@@ -2749,7 +2749,7 @@ fn describe_compression(
     let list = if views.len() <= VIEWS_NAMED {
         views
             .iter()
-            .map(|&(v, mode, filter)| format!("bufferViews[{v}] {}", encoding(mode, filter)))
+            .map(|&(v, mode, filter)| format!("bufferViews[{v}] {}", mode_and_filter(mode, filter)))
             .collect::<Vec<_>>()
             .join(", ")
     } else {
