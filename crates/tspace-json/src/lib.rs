@@ -129,6 +129,8 @@ const _: () = assert!(std::mem::size_of::<Member>() == 48);
 // An editor may hold one of each per edited object, a hundred thousand of them.
 const _: () = assert!(std::mem::size_of::<ObjectEdit<'static>>() == 24);
 const _: () = assert!(std::mem::size_of::<(Text, NewValue)>() == 32);
+const _: () = assert!(std::mem::size_of::<Replacement>() == 24);
+const _: () = assert!(std::mem::size_of::<Piece>() == 16);
 
 /// How many bytes of text a [`Text`] holds without an allocation of its own.
 const INLINE: usize = 14;
@@ -1247,6 +1249,24 @@ pub fn escape_str(s: &str) -> String {
     out
 }
 
+/// Whether [`push_escaped`] writes anything of `s` other than `s` in quotes.
+fn needs_escape(s: &str) -> bool {
+    s.bytes().any(|b| b == b'"' || b == b'\\' || b < 0x20)
+}
+
+/// The length of what [`push_escaped`] writes for `s`, quotes included.
+fn escaped_len(s: &str) -> usize {
+    let escapes: usize = s
+        .bytes()
+        .map(|b| match b {
+            b'"' | b'\\' | b'\n' | b'\r' | b'\t' => 1,
+            b if b < 0x20 => 5,
+            _ => 0,
+        })
+        .sum();
+    s.len() + escapes + 2
+}
+
 /// Appends `s` to `out` as a JSON string literal, quotes included.
 fn push_escaped(out: &mut String, s: &str) {
     out.push('"');
@@ -1367,10 +1387,20 @@ impl std::error::Error for EditError {}
 #[derive(Debug)]
 pub struct Editor<'d, 'a> {
     doc: &'d Document<'a>,
-    replacements: Vec<(Range<usize>, String)>,
+    /// Each replaced span with its new text: a short text (most are numbers) held inside, so
+    /// that an edit of every buffer view's offset and length costs no allocation of its own.
+    replacements: Vec<Replacement>,
     /// Keyed by the container's start offset, which is unique among containers.
     objects: BTreeMap<usize, ObjectEdit<'d>>,
     arrays: BTreeMap<usize, ArrayEdit>,
+}
+
+/// A replaced span of the source and its new text.
+#[derive(Debug)]
+struct Replacement {
+    start: u32,
+    end: u32,
+    text: Text,
 }
 
 /// One object's edits. Nothing of the object is copied: where its members' keys lie is read
@@ -1505,7 +1535,13 @@ impl<'d, 'a> Editor<'d, 'a> {
     pub fn replace(&mut self, node: &Node, text: impl Into<String>) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
         self.check_span(&node.span())?;
-        self.replacements.push((node.span(), text));
+        self.push_replacement(node.span(), text)
+    }
+
+    fn push_replacement(&mut self, span: Range<usize>, text: String) -> Result<(), EditError> {
+        let Piece { start, end, .. } = Piece::new(span, Insert::Nothing)?;
+        let text = Text::from(text);
+        self.replacements.push(Replacement { start, end, text });
         Ok(())
     }
 
@@ -1543,7 +1579,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
         match existing {
             Some((i, member)) if !is_removed(&edit.removed, i) => {
-                self.replacements.push((member.value.span(), text));
+                self.push_replacement(member.value.span(), text)?;
             }
             _ => edit.add(key, NewValue::Text(text.into())),
         }
@@ -1692,21 +1728,38 @@ impl<'d, 'a> Editor<'d, 'a> {
 
     /// The edited document. Fails only on overlapping edits or nodes from another document.
     pub fn render(&self) -> Result<String, EditError> {
+        let plan = self.plan()?;
+        let arrays: Vec<&ArrayEdit> = self.arrays.values().collect();
+        let objects: Vec<&ObjectEdit<'d>> = self.objects.values().collect();
+        let mut out = String::with_capacity(plan.len);
+        let inserts = Inserts {
+            replacement: |i: u32| {
+                let text = self.replacements.get(i as usize);
+                text.map_or("", |replacement| replacement.text.as_str())
+            },
+            elements: |i: u32| {
+                let skip = plan.skips.get(i as usize).copied().unwrap_or(0) as usize;
+                let added = arrays
+                    .get(i as usize)
+                    .map_or("", |edit| edit.added.as_str());
+                added.get(skip..).unwrap_or("")
+            },
+            members: |i: u32| {
+                let layout = plan.layouts.get(i as usize).copied().unwrap_or_default();
+                let added = objects
+                    .get(i as usize)
+                    .map_or(&[][..], |edit| &edit.added[..]);
+                (layout, added)
+            },
+        };
         let source = self.doc.source;
-        let mut pieces: Vec<(Range<usize>, Cow<'_, str>)> = self
-            .replacements
-            .iter()
-            .map(|(range, text)| (range.clone(), Cow::Borrowed(text.as_str())))
-            .collect();
-        for edit in self.arrays.values() {
-            if let Some((at, skip)) = edit.pieces(source, &mut pieces)? {
-                let text = edit.added.get(skip..).unwrap_or("");
-                pieces.push((at..at, Cow::Borrowed(text)));
-            }
-        }
-        let rendered = self.pieces(pieces)?;
-        let mut out = String::with_capacity(rendered.len());
-        rendered.for_each_part(|part| out.push_str(part));
+        write_parts(
+            source,
+            self.doc.body_start,
+            &plan.pieces,
+            &inserts,
+            &mut |part| out.push_str(part),
+        );
         Ok(out)
     }
 
@@ -1716,65 +1769,291 @@ impl<'d, 'a> Editor<'d, 'a> {
     /// texts rather than copy them: the editor's bookkeeping and the document's tree can go
     /// before the output is made.
     pub fn into_rendered(mut self) -> Result<Rendered<'a>, EditError> {
-        let source = self.doc.source;
-        let mut pieces: Vec<(Range<usize>, Cow<'a, str>)> = std::mem::take(&mut self.replacements)
-            .into_iter()
-            .map(|(range, text)| (range, Cow::Owned(text)))
-            .collect();
-        for (_, mut edit) in std::mem::take(&mut self.arrays) {
-            if let Some((at, skip)) = edit.pieces(source, &mut pieces)? {
-                let mut text = std::mem::take(&mut edit.added);
-                text.drain(..skip.min(text.len()));
-                pieces.push((at..at, Cow::Owned(text)));
-            }
-        }
-        self.pieces(pieces)
-    }
-
-    /// The replacements' and arrays' pieces (in that order) with the objects' added, sorted
-    /// and checked: the order in which they were added settles ties.
-    fn pieces<'p>(
-        &self,
-        mut pieces: Vec<(Range<usize>, Cow<'p, str>)>,
-    ) -> Result<Rendered<'p>, EditError>
-    where
-        'a: 'p,
-    {
-        let source = self.doc.source;
-        for edit in self.objects.values() {
-            edit.pieces(self.doc, &mut pieces)?;
-        }
-        // Stable: insertions at one offset keep the order in which they were made, and an
-        // insertion at the start of a replaced span goes before it.
-        pieces.sort_by_key(|(range, _)| (range.start, range.end));
-
-        let body_start = self.doc.body_start;
-        let mut len = source.len().saturating_sub(body_start);
-        let mut cursor = body_start;
-        let mut previous = cursor..cursor;
-        for (range, text) in &pieces {
-            if range.start < cursor {
-                return Err(EditError::Overlap {
-                    first: previous,
-                    second: range.clone(),
-                });
-            }
-            if source.get(cursor..range.start).is_none() || source.get(range.clone()).is_none() {
-                return Err(EditError::ForeignNode {
-                    span: range.clone(),
-                });
-            }
-            len = len - range.len() + text.len();
-            cursor = range.end;
-            previous = range.clone();
-        }
-        Ok(Rendered {
-            source,
-            body_start,
+        let plan = self.plan()?;
+        let Plan {
             pieces,
+            skips,
+            layouts,
+            len,
+        } = plan;
+        let replacements = std::mem::take(&mut self.replacements)
+            .into_iter()
+            .map(|replacement| replacement.text)
+            .collect();
+        // Taken one by one, so that each object's record goes as its members are kept.
+        let objects = std::mem::take(&mut self.objects)
+            .into_values()
+            .zip(layouts)
+            .map(|(edit, layout)| (layout, edit.added))
+            .collect();
+        let elements = std::mem::take(&mut self.arrays)
+            .into_values()
+            .zip(skips)
+            .map(|(edit, skip)| {
+                let mut text = edit.added;
+                text.drain(..(skip as usize).min(text.len()));
+                text
+            })
+            .collect();
+        Ok(Rendered {
+            source: self.doc.source,
+            body_start: self.doc.body_start,
+            pieces,
+            replacements,
+            elements,
+            objects,
             len,
         })
     }
+
+    /// Every edit as a piece of the text, sorted and checked, with what the pieces insert
+    /// measured: replacements first, then arrays', then objects' (each in text order), so
+    /// that the order in which they were added settles ties.
+    fn plan(&self) -> Result<Plan, EditError> {
+        let source = self.doc.source;
+        // Counted first: a scene may make a million pieces, and a list grown by doubling
+        // would hold up to twice that at the peak of the write.
+        let arrays = self
+            .arrays
+            .values()
+            .map(|edit| removal_runs(&edit.removed) + usize::from(edit.added_count > 0));
+        let objects = self
+            .objects
+            .values()
+            .map(|edit| removal_runs(&edit.removed) + usize::from(!edit.added.is_empty()));
+        let count = self.replacements.len() + arrays.sum::<usize>() + objects.sum::<usize>();
+        let mut pieces = Vec::with_capacity(count);
+        let mut inserted = 0usize;
+        for (i, replacement) in self.replacements.iter().enumerate() {
+            let (start, end) = (replacement.start, replacement.end);
+            let insert = Insert::Replacement(index32(i));
+            pieces.push(Piece { start, end, insert });
+            inserted += replacement.text.len();
+        }
+        let mut skips = Vec::with_capacity(self.arrays.len());
+        for (i, edit) in self.arrays.values().enumerate() {
+            let mut skip = 0;
+            if let Some((at, first_separator)) = edit.pieces(source, &mut pieces)? {
+                pieces.push(Piece::new(at..at, Insert::Elements(index32(i)))?);
+                skip = first_separator;
+                inserted += edit.added.len().saturating_sub(skip);
+            }
+            skips.push(index32(skip));
+        }
+        let mut layouts = Vec::with_capacity(self.objects.len());
+        for (i, edit) in self.objects.values().enumerate() {
+            let layout = edit.pieces(self.doc, index32(i), &mut pieces)?;
+            inserted += members_len(source, layout, &edit.added);
+            layouts.push(layout);
+        }
+        // Stable: insertions at one offset keep the order in which they were made, and an
+        // insertion at the start of a replaced span goes before it.
+        pieces.sort_by_key(|piece| (piece.start, piece.end));
+
+        let body_start = self.doc.body_start;
+        let mut kept = source.len().saturating_sub(body_start);
+        let mut cursor = body_start;
+        let mut previous = cursor..cursor;
+        for piece in &pieces {
+            let range = piece.range();
+            if range.start < cursor {
+                return Err(EditError::Overlap {
+                    first: previous,
+                    second: range,
+                });
+            }
+            if source.get(cursor..range.start).is_none() || source.get(range.clone()).is_none() {
+                return Err(EditError::ForeignNode { span: range });
+            }
+            kept -= range.len();
+            cursor = range.end;
+            previous = range;
+        }
+        Ok(Plan {
+            pieces,
+            skips,
+            layouts,
+            len: kept + inserted,
+        })
+    }
+}
+
+/// The edits of an [`Editor`] as pieces of the text, sorted and checked; what the pieces
+/// insert stays where the editor holds it.
+struct Plan {
+    pieces: Vec<Piece>,
+    /// Per edited array, in text order: how much of its added text to leave out (the first
+    /// separator, when no original element is kept).
+    skips: Vec<u32>,
+    /// Per edited object, in text order: where its added members go and the layout they copy.
+    layouts: Vec<MemberLayout>,
+    /// The edited text's length in bytes.
+    len: usize,
+}
+
+/// One edit of the text: the source's bytes `start..end` give way to `insert`. Sixteen bytes,
+/// where a range and a text were forty and the text often a copy: `compress=meshopt` on a
+/// scene of many small views makes a million.
+#[derive(Clone, Copy, Debug)]
+struct Piece {
+    start: u32,
+    end: u32,
+    insert: Insert,
+}
+
+/// What a [`Piece`] puts in place of its span: an index into the texts of its kind.
+#[derive(Clone, Copy, Debug)]
+enum Insert {
+    /// Nothing: a removal.
+    Nothing,
+    /// Replacement `i`, in the order the replacements were made.
+    Replacement(u32),
+    /// The elements added to the `i`th edited array, in text order.
+    Elements(u32),
+    /// The members added to the `i`th edited object, in text order.
+    Members(u32),
+}
+
+impl Piece {
+    /// Offsets in a source [`Document::parse`] accepted fit in 32 bits; a range past them is
+    /// no node of this document.
+    fn new(range: Range<usize>, insert: Insert) -> Result<Piece, EditError> {
+        match (u32::try_from(range.start), u32::try_from(range.end)) {
+            (Ok(start), Ok(end)) => Ok(Piece { start, end, insert }),
+            _ => Err(EditError::ForeignNode { span: range }),
+        }
+    }
+
+    fn range(&self) -> Range<usize> {
+        self.start as usize..self.end as usize
+    }
+}
+
+/// A position in a list the editor holds, as 32 bits: the lists are bounded by the source's
+/// length, which [`Document::parse`] keeps under 4 GiB.
+fn index32(i: usize) -> u32 {
+    u32::try_from(i).unwrap_or(u32::MAX)
+}
+
+/// Where an object's added members go, and the layout they copy from its last members: the
+/// whitespace before a key and the spelling of the colon (spans of the source), and whether a
+/// comma comes before the first (some original member is kept).
+#[derive(Clone, Copy, Debug, Default)]
+struct MemberLayout {
+    lead: (u32, u32),
+    colon: (u32, u32),
+    comma: bool,
+}
+
+impl MemberLayout {
+    fn lead<'s>(&self, source: &'s str) -> &'s str {
+        source
+            .get(self.lead.0 as usize..self.lead.1 as usize)
+            .unwrap_or("")
+    }
+
+    /// The colon's spelling; a bare colon where there was no member to copy it from (the span
+    /// of a real one holds at least the colon).
+    fn colon<'s>(&self, source: &'s str) -> &'s str {
+        match source.get(self.colon.0 as usize..self.colon.1 as usize) {
+            Some(colon) if !colon.is_empty() => colon,
+            _ => ":",
+        }
+    }
+}
+
+/// The texts [`Piece`]s insert, by kind and index.
+struct Inserts<R, E, M> {
+    replacement: R,
+    elements: E,
+    members: M,
+}
+
+/// Calls `f` with each part of the edited text in order: the source's kept runs and what
+/// the pieces insert.
+fn write_parts<'t, R, E, M>(
+    source: &'t str,
+    body_start: usize,
+    pieces: &[Piece],
+    inserts: &Inserts<R, E, M>,
+    f: &mut impl FnMut(&str),
+) where
+    R: Fn(u32) -> &'t str,
+    E: Fn(u32) -> &'t str,
+    M: Fn(u32) -> (MemberLayout, &'t [(Text, NewValue)]),
+{
+    let mut cursor = body_start;
+    for piece in pieces {
+        f(source.get(cursor..piece.start as usize).unwrap_or(""));
+        match piece.insert {
+            Insert::Nothing => {}
+            Insert::Replacement(i) => f((inserts.replacement)(i)),
+            Insert::Elements(i) => f((inserts.elements)(i)),
+            Insert::Members(i) => {
+                let (layout, members) = (inserts.members)(i);
+                write_members(source, layout, members, f);
+            }
+        }
+        cursor = piece.end as usize;
+    }
+    f(source.get(cursor..).unwrap_or(""));
+}
+
+/// An object's added members as [`ObjectEdit`]'s layout writes them, part by part: written
+/// where the text is made, rather than joined into a text of their own for each object.
+fn write_members(
+    source: &str,
+    layout: MemberLayout,
+    members: &[(Text, NewValue)],
+    f: &mut impl FnMut(&str),
+) {
+    let (lead, colon) = (layout.lead(source), layout.colon(source));
+    let mut comma = layout.comma;
+    for (key, value) in members {
+        if comma {
+            f(",");
+            f(lead);
+        }
+        comma = true;
+        if needs_escape(key) {
+            let mut escaped = String::new();
+            push_escaped(&mut escaped, key);
+            f(&escaped);
+        } else {
+            f("\"");
+            f(key);
+            f("\"");
+        }
+        f(colon);
+        match value {
+            NewValue::Text(text) => f(text),
+            NewValue::Array(array) => {
+                f("[");
+                f(&array.items);
+                f("]");
+            }
+        }
+    }
+}
+
+/// The length of what [`write_members`] writes.
+fn members_len(source: &str, layout: MemberLayout, members: &[(Text, NewValue)]) -> usize {
+    let separator = 1 + layout.lead(source).len();
+    let colon = layout.colon(source).len();
+    let mut comma = layout.comma;
+    let mut len = 0;
+    for (key, value) in members {
+        if comma {
+            len += separator;
+        }
+        comma = true;
+        let value = match value {
+            NewValue::Text(text) => text.len(),
+            NewValue::Array(array) => array.items.len() + 2,
+        };
+        len += escaped_len(key) + colon + value;
+    }
+    len
 }
 
 /// An edited document in pieces: the source's kept runs and the edits' new text, in order
@@ -1783,7 +2062,12 @@ impl<'d, 'a> Editor<'d, 'a> {
 pub struct Rendered<'e> {
     source: &'e str,
     body_start: usize,
-    pieces: Vec<(Range<usize>, Cow<'e, str>)>,
+    pieces: Vec<Piece>,
+    /// The editor's texts, taken from it: replacements in the order they were made, each
+    /// edited array's added elements and each edited object's added members, in text order.
+    replacements: Vec<Text>,
+    elements: Vec<String>,
+    objects: Vec<(MemberLayout, Thin<(Text, NewValue)>)>,
     len: usize,
 }
 
@@ -1801,13 +2085,15 @@ impl Rendered<'_> {
     /// Calls `f` with each part of the edited text in order; together they are
     /// [`Rendered::len`] bytes.
     pub fn for_each_part(&self, mut f: impl FnMut(&str)) {
-        let mut cursor = self.body_start;
-        for (range, text) in &self.pieces {
-            f(self.source.get(cursor..range.start).unwrap_or(""));
-            f(text);
-            cursor = range.end;
-        }
-        f(self.source.get(cursor..).unwrap_or(""));
+        let inserts = Inserts {
+            replacement: |i: u32| self.replacements.get(i as usize).map_or("", Text::as_str),
+            elements: |i: u32| self.elements.get(i as usize).map_or("", String::as_str),
+            members: |i: u32| match self.objects.get(i as usize) {
+                Some((layout, added)) => (*layout, &added[..]),
+                None => (MemberLayout::default(), &[][..]),
+            },
+        };
+        write_parts(self.source, self.body_start, &self.pieces, &inserts, &mut f);
     }
 }
 
@@ -1855,6 +2141,15 @@ fn lead_after_comma(gap: &str) -> &str {
     gap.find(',').map_or("", |i| gap.get(i + 1..).unwrap_or(""))
 }
 
+/// How many pieces [`removal_pieces`] makes: one per run of removed items.
+fn removal_runs(removed: &[bool]) -> usize {
+    let starts = removed
+        .windows(2)
+        .filter(|pair| !pair[0] && pair[1])
+        .count();
+    starts + usize::from(removed.first() == Some(&true))
+}
+
 /// The deletions for removed items (members or elements), given each item's start and end.
 /// Removals go by runs of adjacent removed items, so that each comma is deleted once: a run
 /// after a kept item takes the comma before it; a run at the start takes the comma after it; a
@@ -1865,7 +2160,7 @@ fn removal_pieces(
     start: impl Fn(usize) -> usize,
     end: impl Fn(usize) -> usize,
     source: &str,
-    out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
+    out: &mut Vec<Piece>,
 ) -> Result<(), EditError> {
     let mut i = 0;
     while i < n {
@@ -1886,7 +2181,7 @@ fn removal_pieces(
             start(first)..end(last)
         };
         slice(source, range.clone())?;
-        out.push((range, Cow::Borrowed("")));
+        out.push(Piece::new(range, Insert::Nothing)?);
     }
     Ok(())
 }
@@ -1908,11 +2203,14 @@ impl ObjectEdit<'_> {
         self.added.push((Text::new(key), value));
     }
 
+    /// The removals' pieces and the added members' (at the end of the object, `Members(index)`);
+    /// returns the layout the added members copy.
     fn pieces(
         &self,
         doc: &Document<'_>,
-        out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
-    ) -> Result<(), EditError> {
+        index: u32,
+        out: &mut Vec<Piece>,
+    ) -> Result<MemberLayout, EditError> {
         let source = doc.source;
         let members = self.object.as_object().unwrap_or(&[]);
         let n = members.len();
@@ -1927,57 +2225,42 @@ impl ObjectEdit<'_> {
         removal_pieces(n, removed, start, end, source, out)?;
 
         if self.added.is_empty() {
-            return Ok(());
+            return Ok(MemberLayout::default());
         }
         // New members copy the layout of the last existing ones: the whitespace before a key,
         // and the spelling of the colon.
         let (at, lead, colon) = match members.last() {
-            None => (open + 1, "", ":"),
+            None => (open + 1, open + 1..open + 1, None),
             Some(last) => {
                 let lead = if n >= 2 {
-                    lead_after_comma(slice(source, end(n - 2)..start(n - 1))?)
+                    let gap = end(n - 2)..start(n - 1);
+                    let comma = slice(source, gap.clone())?.find(',');
+                    comma.map_or(gap.end, |i| gap.start + i + 1)..gap.end
                 } else {
-                    slice(source, open + 1..start(n - 1))?
+                    open + 1..start(n - 1)
                 };
+                slice(source, lead.clone())?;
                 let key_end = key_span(n - 1).map_or(0, |key| key.end);
-                let colon = slice(source, key_end..last.value.span().start)?;
-                (end(n - 1), lead, colon)
+                let colon = key_end..last.value.span().start;
+                slice(source, colon.clone())?;
+                (end(n - 1), lead, Some(colon))
             }
         };
-        let mut comma = (0..n).any(|i| !removed(i));
-        // One allocation for the members' text, of its length (a key with escapes may grow it).
-        // Lengths as bytes: a `Text` read as a `str` is checked as UTF-8 again.
-        let len: usize = self
-            .added
-            .iter()
-            .map(|(key, value)| {
-                let value = match value {
-                    NewValue::Text(t) => t.as_bytes().len(),
-                    NewValue::Array(array) => array.items.len() + 2,
-                };
-                1 + lead.len() + key.as_bytes().len() + 2 + colon.len() + value
-            })
-            .sum();
-        let mut text = String::with_capacity(len);
-        for (key, value) in self.added.iter() {
-            if comma {
-                text.push(',');
-                text.push_str(lead);
-            }
-            comma = true;
-            push_escaped(&mut text, key);
-            text.push_str(colon);
-            match value {
-                NewValue::Text(t) => text.push_str(t),
-                NewValue::Array(array) => {
-                    text.push('[');
-                    text.push_str(&array.items);
-                    text.push(']');
-                }
-            }
-        }
-        out.push((at..at, Cow::Owned(text)));
-        Ok(())
+        let span = |range: Range<usize>| -> Result<(u32, u32), EditError> {
+            let piece = Piece::new(range, Insert::Nothing)?;
+            Ok((piece.start, piece.end))
+        };
+        let layout = MemberLayout {
+            lead: span(lead)?,
+            // No member to copy: a bare colon (`MemberLayout::colon` reads an empty span so).
+            colon: match colon {
+                Some(colon) => span(colon)?,
+                None => (0, 0),
+            },
+            comma: (0..n).any(|i| !removed(i)),
+        };
+        out.push(Piece::new(at..at, Insert::Members(index))?);
+        Ok(layout)
     }
 }
 
@@ -2007,7 +2290,7 @@ impl ArrayEdit {
     fn pieces(
         &self,
         source: &str,
-        out: &mut Vec<(Range<usize>, Cow<'_, str>)>,
+        out: &mut Vec<Piece>,
     ) -> Result<Option<(usize, usize)>, EditError> {
         let n = self.elements.len();
         let removed = |i: usize| is_removed(&self.removed, i);
@@ -2623,11 +2906,30 @@ mod tests {
     }
 
     #[test]
+    fn removal_runs_counts_the_pieces_removal_pieces_makes() {
+        let source = "0123456789";
+        for n in 0..=6 {
+            for bits in 0u32..1 << n {
+                let removed: Vec<bool> = (0..n).map(|i| bits & (1 << i) != 0).collect();
+                let mut pieces = Vec::new();
+                let (start, end) = (|i: usize| i, |i: usize| i + 1);
+                removal_pieces(n, |i| removed[i], start, end, source, &mut pieces).unwrap();
+                assert_eq!(removal_runs(&removed), pieces.len(), "{removed:?}");
+            }
+        }
+    }
+
+    #[test]
     fn escaping() {
         let tricky = "a\"b\\c\n\r\t\u{1}\u{1f}é😀/";
         let lit = escape_str(tricky);
         assert_eq!(lit, "\"a\\\"b\\\\c\\n\\r\\t\\u0001\\u001fé😀/\"");
         assert_eq!(parse(&lit).unwrap().root().as_str(), Some(tricky));
+        // As an added member's key, in a text measured before it is written (see `edited`).
+        let out = edited("{\"a\":1}", |doc, ed| {
+            ed.insert_member(doc.root(), tricky, "2").unwrap();
+        });
+        assert_eq!(out, format!("{{\"a\":1,{lit}:2}}"));
     }
 
     #[test]
