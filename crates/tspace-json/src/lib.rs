@@ -126,9 +126,10 @@ pub struct Number(Text);
 const _: () = assert!(std::mem::size_of::<Text>() == 16);
 const _: () = assert!(std::mem::size_of::<Node>() == 32);
 const _: () = assert!(std::mem::size_of::<Member>() == 48);
-// An editor may hold one of each per edited object, a hundred thousand of them.
-const _: () = assert!(std::mem::size_of::<ObjectEdit<'static>>() == 24);
-const _: () = assert!(std::mem::size_of::<(Text, NewValue)>() == 32);
+// An editor may hold one of each per edited object, a quarter of a million of them. An added
+// member of 40 bytes takes the same 48-byte block of the allocator as one of 32 would.
+const _: () = assert!(std::mem::size_of::<ObjectEdit<'static>>() == 32);
+const _: () = assert!(std::mem::size_of::<(Text, NewValue)>() == 40);
 const _: () = assert!(std::mem::size_of::<Replacement>() == 24);
 const _: () = assert!(std::mem::size_of::<Piece>() == 16);
 
@@ -1242,6 +1243,16 @@ fn check_unique_keys(keys: &mut [(&str, usize)]) -> Result<(), Fail> {
     }
 }
 
+/// A member's value that its maker writes again when the edited text is made, rather than hand
+/// the [`Editor`] a text to hold until then ([`Editor::insert_member_deferred`]): for a caller
+/// that adds many values it can make again at will from less than their text (an extension
+/// object for each of a quarter of a million buffer views).
+pub trait DeferredValue: fmt::Debug + Send + Sync {
+    /// Appends the value's text to `out`: one JSON value, the same on every call. The editor
+    /// checks the first and counts on the others being equal to it.
+    fn write(&self, out: &mut String);
+}
+
 /// `s` as a JSON string literal, quotes included.
 pub fn escape_str(s: &str) -> String {
     let mut out = String::with_capacity(s.len() + 2);
@@ -1411,15 +1422,44 @@ struct ObjectEdit<'d> {
     object: &'d Node,
     /// Per original member, whether it is removed; empty while none is.
     removed: Thin<bool>,
-    added: Thin<(Text, NewValue)>,
+    /// Added members, in order. A boxed slice, not a [`Thin`] list: one allocation for the
+    /// usual single member where a `Thin` takes two, for eight bytes more in the record.
+    added: Box<[(Text, NewValue)]>,
 }
 
 #[derive(Debug)]
 enum NewValue {
-    Text(Text),
+    /// A value's text of at most [`INLINE`] bytes, held inside.
+    Short(Text),
+    /// A longer value's text, in one allocation (a [`Text`] would take two).
+    Long(Box<str>),
+    /// A value its maker writes when the text is made, `len` bytes long.
+    Deferred {
+        len: u32,
+        value: Box<dyn DeferredValue>,
+    },
     /// An array member created by [`Editor::push_to_array_member`]; grows with each push.
     /// Boxed, so that a member with a short text value takes no more room than its text.
     Array(Box<NewArray>),
+}
+
+impl NewValue {
+    fn text(text: String) -> NewValue {
+        if text.len() <= INLINE {
+            NewValue::Short(Text::new(&text))
+        } else {
+            NewValue::Long(text.into_boxed_str())
+        }
+    }
+
+    /// The value's text when the editor holds it as one.
+    fn as_text(&self) -> Option<&str> {
+        match self {
+            NewValue::Short(text) => Some(text),
+            NewValue::Long(text) => Some(text),
+            NewValue::Deferred { .. } | NewValue::Array(_) => None,
+        }
+    }
 }
 
 #[derive(Debug)]
@@ -1429,9 +1469,8 @@ struct NewArray {
     count: usize,
 }
 
-/// A short list held as one pointer, null while the list is empty: an editor may hold a
-/// hundred thousand edited objects, nearly every one gaining a single member and losing none,
-/// where two `Vec`s would take 48 bytes each. Pushing reallocates; these lists stay short.
+/// A list held as one pointer, null while the list is empty: an edited object's or array's
+/// removed flags, which nearly every one of a hundred thousand edited objects lacks.
 #[derive(Debug)]
 struct Thin<T>(Option<Box<Box<[T]>>>);
 
@@ -1444,27 +1483,6 @@ impl<T> Default for Thin<T> {
 impl<T> Thin<T> {
     fn from_vec(items: Vec<T>) -> Self {
         Thin((!items.is_empty()).then(|| Box::new(items.into_boxed_slice())))
-    }
-
-    fn take_vec(&mut self) -> Vec<T> {
-        self.0
-            .take()
-            .map_or_else(Vec::new, |items| items.into_vec())
-    }
-
-    fn push(&mut self, item: T) {
-        let mut items = self.take_vec();
-        items.reserve_exact(1);
-        items.push(item);
-        *self = Thin::from_vec(items);
-    }
-
-    fn remove(&mut self, i: usize) {
-        let mut items = self.take_vec();
-        if i < items.len() {
-            items.remove(i);
-        }
-        *self = Thin::from_vec(items);
     }
 }
 
@@ -1491,13 +1509,51 @@ struct ArrayEdit {
     /// Per original element, whether it is removed; empty while none is.
     removed: Thin<bool>,
     /// The added elements' texts, each after the comma and whitespace that separate it from
-    /// the one before: one text for all, which rendering takes as it is.
-    added: String,
+    /// the one before, which rendering takes as they are.
+    added: Chunks,
     /// How many elements were added.
     added_count: usize,
     /// The first added element's separator's length, left out when no original element is
     /// kept.
     first_separator: usize,
+}
+
+/// A long text appended to in pieces, held in blocks of about [`Chunks::BLOCK`] bytes: an array
+/// gaining a quarter of a million elements (every view of a large scene) made one text of tens
+/// of megabytes, grown by doubling, so up to twice its length at the write's peak, and each
+/// doubling copied it whole.
+#[derive(Debug, Default)]
+struct Chunks(Vec<String>);
+
+impl Chunks {
+    const BLOCK: usize = 256 << 10;
+
+    /// Appends `parts`, joined, keeping them in one block.
+    fn push(&mut self, parts: &[&str]) {
+        let len: usize = parts.iter().map(|part| part.len()).sum();
+        let fits = self
+            .0
+            .last()
+            .is_some_and(|last| last.capacity() - last.len() >= len);
+        if !fits {
+            self.0.push(String::with_capacity(len.max(Self::BLOCK)));
+        }
+        if let Some(last) = self.0.last_mut() {
+            parts.iter().for_each(|part| last.push_str(part));
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.0.iter().map(String::len).sum()
+    }
+
+    /// The blocks, less the first `skip` bytes (which lie in the first block).
+    fn parts(&self, skip: usize) -> impl Iterator<Item = &str> {
+        self.0.iter().enumerate().map(move |(i, block)| match i {
+            0 => block.get(skip..).unwrap_or(""),
+            _ => block.as_str(),
+        })
+    }
 }
 
 /// Whether item `i` is removed, in a list that is empty while none is.
@@ -1557,7 +1613,32 @@ impl<'d, 'a> Editor<'d, 'a> {
         if edit.has_key(key) {
             return Err(EditError::MemberExists { key: key.into() });
         }
-        edit.add(key, NewValue::Text(text.into()));
+        edit.add(key, NewValue::text(text));
+        Ok(())
+    }
+
+    /// Adds member `key` at the end of `object`, its value written by `value` when the text is
+    /// made (see [`DeferredValue`]); the editor holds `value` instead of its text. Fails if the
+    /// key is already there, or as [`Editor::insert_member`] does on what `value` writes.
+    pub fn insert_member_deferred(
+        &mut self,
+        object: &'d Node,
+        key: &str,
+        value: Box<dyn DeferredValue>,
+    ) -> Result<(), EditError> {
+        let mut text = String::new();
+        value.write(&mut text);
+        let text = checked_text(text)?;
+        let edit = self.object_edit(object)?;
+        if edit.has_key(key) {
+            return Err(EditError::MemberExists { key: key.into() });
+        }
+        // A text past 4 GiB is held as it is.
+        let new = match u32::try_from(text.len()) {
+            Ok(len) => NewValue::Deferred { len, value },
+            Err(_) => NewValue::text(text),
+        };
+        edit.add(key, new);
         Ok(())
     }
 
@@ -1571,7 +1652,7 @@ impl<'d, 'a> Editor<'d, 'a> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
         if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
-            *value = NewValue::Text(text.into());
+            *value = NewValue::text(text);
             return Ok(());
         }
         let existing = object
@@ -1581,7 +1662,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             Some((i, member)) if !is_removed(&edit.removed, i) => {
                 self.push_replacement(member.value.span(), text)?;
             }
-            _ => edit.add(key, NewValue::Text(text.into())),
+            _ => edit.add(key, NewValue::text(text)),
         }
         Ok(())
     }
@@ -1590,7 +1671,9 @@ impl<'d, 'a> Editor<'d, 'a> {
     pub fn remove_member(&mut self, object: &'d Node, key: &str) -> Result<bool, EditError> {
         let edit = self.object_edit(object)?;
         if let Some(i) = edit.added.iter().position(|(k, _)| k == key) {
-            edit.added.remove(i);
+            let mut added = std::mem::take(&mut edit.added).into_vec();
+            added.remove(i);
+            edit.added = added.into_boxed_slice();
             return Ok(true);
         }
         let members = object.as_object().unwrap_or(&[]);
@@ -1641,7 +1724,7 @@ impl<'d, 'a> Editor<'d, 'a> {
                 open: array.span().start,
                 elements: elements.iter().map(|e| (e.start, e.end)).collect(),
                 removed: Thin::default(),
-                added: String::new(),
+                added: Chunks::default(),
                 added_count: 0,
                 first_separator: 0,
             }))
@@ -1666,7 +1749,9 @@ impl<'d, 'a> Editor<'d, 'a> {
                     array.count += 1;
                     Ok(array.count - 1)
                 }
-                NewValue::Text(_) => Err(EditError::MemberExists { key: key.into() }),
+                NewValue::Short(_) | NewValue::Long(_) | NewValue::Deferred { .. } => {
+                    Err(EditError::MemberExists { key: key.into() })
+                }
             };
         }
         let existing = object
@@ -1717,7 +1802,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             let edit = ObjectEdit {
                 object,
                 removed: Thin::default(),
-                added: Thin::default(),
+                added: Box::default(),
             };
             self.objects.insert(open, edit);
         }
@@ -1739,10 +1824,8 @@ impl<'d, 'a> Editor<'d, 'a> {
             },
             elements: |i: u32| {
                 let skip = plan.skips.get(i as usize).copied().unwrap_or(0) as usize;
-                let added = arrays
-                    .get(i as usize)
-                    .map_or("", |edit| edit.added.as_str());
-                added.get(skip..).unwrap_or("")
+                let added = arrays.get(i as usize).map(|edit| &edit.added);
+                (skip, added)
             },
             members: |i: u32| {
                 let layout = plan.layouts.get(i as usize).copied().unwrap_or_default();
@@ -1780,20 +1863,14 @@ impl<'d, 'a> Editor<'d, 'a> {
             .into_iter()
             .map(|replacement| replacement.text)
             .collect();
-        // Taken one by one, so that each object's record goes as its members are kept.
+        // Only the members are kept of each object's record (the plan has its layout).
         let objects = std::mem::take(&mut self.objects)
             .into_values()
-            .zip(layouts)
-            .map(|(edit, layout)| (layout, edit.added))
+            .map(|edit| edit.added)
             .collect();
         let elements = std::mem::take(&mut self.arrays)
             .into_values()
-            .zip(skips)
-            .map(|(edit, skip)| {
-                let mut text = edit.added;
-                text.drain(..(skip as usize).min(text.len()));
-                text
-            })
+            .map(|edit| edit.added)
             .collect();
         Ok(Rendered {
             source: self.doc.source,
@@ -1802,6 +1879,8 @@ impl<'d, 'a> Editor<'d, 'a> {
             replacements,
             elements,
             objects,
+            layouts,
+            skips,
             len,
         })
     }
@@ -1846,9 +1925,10 @@ impl<'d, 'a> Editor<'d, 'a> {
             inserted += members_len(source, layout, &edit.added);
             layouts.push(layout);
         }
-        // Stable: insertions at one offset keep the order in which they were made, and an
-        // insertion at the start of a replaced span goes before it.
-        pieces.sort_by_key(|piece| (piece.start, piece.end));
+        // An insertion at the start of a replaced span goes before it. Pieces with one span
+        // (insertions at one offset) go in the order they were made, which is the order of
+        // `Insert`: the sort needs no room of its own (a stable one took half the list again).
+        pieces.sort_unstable_by_key(|piece| (piece.start, piece.end, piece.insert));
 
         let body_start = self.doc.body_start;
         let mut kept = source.len().saturating_sub(body_start);
@@ -1901,8 +1981,10 @@ struct Piece {
     insert: Insert,
 }
 
-/// What a [`Piece`] puts in place of its span: an index into the texts of its kind.
-#[derive(Clone, Copy, Debug)]
+/// What a [`Piece`] puts in place of its span: an index into the texts of its kind. Ordered
+/// as [`Editor::plan`] makes them: replacements, then arrays' elements, then objects' members,
+/// each kind by its index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Insert {
     /// Nothing: a removal.
     Nothing,
@@ -1979,19 +2061,27 @@ fn write_parts<'t, R, E, M>(
     f: &mut impl FnMut(&str),
 ) where
     R: Fn(u32) -> &'t str,
-    E: Fn(u32) -> &'t str,
+    E: Fn(u32) -> (usize, Option<&'t Chunks>),
     M: Fn(u32) -> (MemberLayout, &'t [(Text, NewValue)]),
 {
     let mut cursor = body_start;
+    // Where deferred values are written, one after the other.
+    let mut scratch = String::new();
     for piece in pieces {
         f(source.get(cursor..piece.start as usize).unwrap_or(""));
         match piece.insert {
             Insert::Nothing => {}
             Insert::Replacement(i) => f((inserts.replacement)(i)),
-            Insert::Elements(i) => f((inserts.elements)(i)),
+            Insert::Elements(i) => {
+                let (skip, added) = (inserts.elements)(i);
+                added
+                    .into_iter()
+                    .flat_map(|added| added.parts(skip))
+                    .for_each(&mut *f);
+            }
             Insert::Members(i) => {
                 let (layout, members) = (inserts.members)(i);
-                write_members(source, layout, members, f);
+                write_members(source, layout, members, &mut scratch, f);
             }
         }
         cursor = piece.end as usize;
@@ -2005,6 +2095,7 @@ fn write_members(
     source: &str,
     layout: MemberLayout,
     members: &[(Text, NewValue)],
+    scratch: &mut String,
     f: &mut impl FnMut(&str),
 ) {
     let (lead, colon) = (layout.lead(source), layout.colon(source));
@@ -2026,7 +2117,12 @@ fn write_members(
         }
         f(colon);
         match value {
-            NewValue::Text(text) => f(text),
+            NewValue::Short(_) | NewValue::Long(_) => f(value.as_text().unwrap_or("null")),
+            NewValue::Deferred { value, .. } => {
+                scratch.clear();
+                value.write(scratch);
+                f(scratch);
+            }
             NewValue::Array(array) => {
                 f("[");
                 f(&array.items);
@@ -2048,7 +2144,8 @@ fn members_len(source: &str, layout: MemberLayout, members: &[(Text, NewValue)])
         }
         comma = true;
         let value = match value {
-            NewValue::Text(text) => text.len(),
+            NewValue::Short(_) | NewValue::Long(_) => value.as_text().map_or(4, str::len),
+            NewValue::Deferred { len, .. } => *len as usize,
             NewValue::Array(array) => array.items.len() + 2,
         };
         len += escaped_len(key) + colon + value;
@@ -2066,8 +2163,12 @@ pub struct Rendered<'e> {
     /// The editor's texts, taken from it: replacements in the order they were made, each
     /// edited array's added elements and each edited object's added members, in text order.
     replacements: Vec<Text>,
-    elements: Vec<String>,
-    objects: Vec<(MemberLayout, Thin<(Text, NewValue)>)>,
+    elements: Vec<Chunks>,
+    objects: Vec<Box<[(Text, NewValue)]>>,
+    /// Where each edited object's members go, and the layout they copy.
+    layouts: Vec<MemberLayout>,
+    /// How much of each edited array's added text to leave out.
+    skips: Vec<u32>,
     len: usize,
 }
 
@@ -2087,10 +2188,17 @@ impl Rendered<'_> {
     pub fn for_each_part(&self, mut f: impl FnMut(&str)) {
         let inserts = Inserts {
             replacement: |i: u32| self.replacements.get(i as usize).map_or("", Text::as_str),
-            elements: |i: u32| self.elements.get(i as usize).map_or("", String::as_str),
-            members: |i: u32| match self.objects.get(i as usize) {
-                Some((layout, added)) => (*layout, &added[..]),
-                None => (MemberLayout::default(), &[][..]),
+            elements: |i: u32| {
+                let skip = self.skips.get(i as usize).copied().unwrap_or(0) as usize;
+                (skip, self.elements.get(i as usize))
+            },
+            members: |i: u32| {
+                let layout = self.layouts.get(i as usize).copied().unwrap_or_default();
+                let added = self
+                    .objects
+                    .get(i as usize)
+                    .map_or(&[][..], |added| &added[..]);
+                (layout, added)
             },
         };
         write_parts(self.source, self.body_start, &self.pieces, &inserts, &mut f);
@@ -2200,7 +2308,10 @@ impl ObjectEdit<'_> {
 
     /// Adds a member.
     fn add(&mut self, key: &str, value: NewValue) {
-        self.added.push((Text::new(key), value));
+        let mut added = std::mem::take(&mut self.added).into_vec();
+        added.reserve_exact(1);
+        added.push((Text::new(key), value));
+        self.added = added.into_boxed_slice();
     }
 
     /// The removals' pieces and the added members' (at the end of the object, `Members(index)`);
@@ -2278,9 +2389,7 @@ impl ArrayEdit {
         if self.added_count == 0 {
             self.first_separator = 1 + lead.len();
         }
-        self.added.push(',');
-        self.added.push_str(lead);
-        self.added.push_str(text);
+        self.added.push(&[",", lead, text]);
         self.added_count += 1;
         Ok(())
     }
@@ -2722,6 +2831,56 @@ mod tests {
             ed.set_member(doc.root(), "b", "21").unwrap();
         });
         assert_eq!(out, "{\"a\":10,\"b\":21}");
+        // Values past a short text's room, added, replaced by a short one and back.
+        let long = "\"longer than fourteen bytes\"";
+        let out = edited("{\"a\":1}", |doc, ed| {
+            ed.set_member(doc.root(), "a", long).unwrap();
+            ed.set_member(doc.root(), "b", long).unwrap();
+            ed.set_member(doc.root(), "c", long).unwrap();
+            ed.set_member(doc.root(), "c", "3").unwrap();
+            ed.set_member(doc.root(), "d", "4").unwrap();
+            ed.set_member(doc.root(), "d", long).unwrap();
+            assert!(ed.remove_member(doc.root(), "b").unwrap());
+        });
+        assert_eq!(out, format!("{{\"a\":{long},\"c\":3,\"d\":{long}}}"));
+    }
+
+    /// A value written from a number when the text is made.
+    #[derive(Debug)]
+    struct Counted(&'static str, u32);
+
+    impl DeferredValue for Counted {
+        fn write(&self, out: &mut String) {
+            out.push_str(&format!("{{\"{}\":{}}}", self.0, self.1));
+        }
+    }
+
+    #[test]
+    fn deferred_members_are_written_when_the_text_is_made() {
+        let out = edited("[{\"a\":1},{}, {\"b\": 2, \"c\": 3}]", |doc, ed| {
+            for (i, element) in doc.root().as_array().unwrap().iter().enumerate() {
+                let value = Box::new(Counted("n", i as u32));
+                ed.insert_member_deferred(element, "x", value).unwrap();
+            }
+            let first = &doc.root().as_array().unwrap()[0];
+            ed.insert_member(first, "y", "\"after\"").unwrap();
+        });
+        assert_eq!(
+            out,
+            "[{\"a\":1,\"x\":{\"n\":0},\"y\":\"after\"},{\"x\":{\"n\":1}}, \
+             {\"b\": 2, \"c\": 3, \"x\": {\"n\":2}}]"
+        );
+        let doc = parse("{\"x\":1}").unwrap();
+        let mut ed = doc.editor();
+        assert_eq!(
+            ed.insert_member_deferred(doc.root(), "x", Box::new(Counted("n", 1))),
+            Err(EditError::MemberExists { key: "x".into() })
+        );
+        assert!(matches!(
+            ed.insert_member_deferred(doc.root(), "y", Box::new(Counted("\"", 1))),
+            Err(EditError::InvalidText { .. })
+        ));
+        assert_eq!(ed.render().unwrap(), "{\"x\":1}");
     }
 
     #[test]
@@ -2747,6 +2906,30 @@ mod tests {
             doc.editor().append_element(doc.root(), "1"),
             Err(EditError::NotAnArray { .. })
         ));
+    }
+
+    /// More elements than one block of added text holds, after the originals are all removed
+    /// (so the first separator is left out) and after some are kept.
+    #[test]
+    fn many_appended_elements_span_blocks() {
+        let element = "{\"a\":12345678}";
+        let count = 3 * Chunks::BLOCK / element.len();
+        for (input, remove, expected_first) in [("[1, 2]", true, element), ("[1, 2]", false, "1")] {
+            let out = edited(input, |doc, ed| {
+                if remove {
+                    assert!(ed.remove_element(doc.root(), 0).unwrap());
+                    assert!(ed.remove_element(doc.root(), 1).unwrap());
+                }
+                for _ in 0..count {
+                    ed.append_element(doc.root(), element).unwrap();
+                }
+            });
+            let doc = parse(&out).unwrap();
+            let elements = doc.root().as_array().unwrap();
+            assert_eq!(elements.len(), count + if remove { 0 } else { 2 });
+            assert_eq!(&out[elements[0].span()], expected_first);
+            assert!(out.ends_with(&format!(", {element}]")));
+        }
     }
 
     #[test]

@@ -601,7 +601,7 @@ fn edit<'a, 'l>(
         OutputFormat::Glb => embed_images(root, resources, &mut warnings),
         OutputFormat::GltfEmbedded => Images::default(),
     };
-    let layout = match output {
+    let mut layout = match output {
         Output::Keep => lay_out_buffer(root, &buffers, &numbering, changes, &images, format)?,
         _ => {
             let recompress = compression == Compression::Meshopt;
@@ -677,12 +677,17 @@ fn edit<'a, 'l>(
             ));
         }
     }
-    let json = editor.into_rendered().map_err(edit_error)?;
     let dropped = Dropped {
         accessors: (numbering.accessor_map.len() - numbering.kept_accessors) as u64,
         buffer_views: (numbering.view_map.len() - numbering.kept_views) as u64,
         kept_because,
     };
+    // Rendering is the write's peak, beside the tree and the editor's records. What it does
+    // not read goes first: the numbering and where each view went, an entry per view each (a
+    // quarter of a million in a compressed scene of many small views).
+    drop(numbering);
+    layout.keep_bytes_only();
+    let json = editor.into_rendered().map_err(edit_error)?;
     let written = Written {
         bytes: Vec::new(),
         pieces: None,
@@ -1120,6 +1125,15 @@ struct Layout<'s> {
     bin_needed: bool,
     /// With meshopt in or out: where each view went, view by view.
     packed: Option<Packed>,
+}
+
+impl Layout<'_> {
+    /// Forgets where each view went, which only the edits read.
+    fn keep_bytes_only(&mut self) {
+        self.view_position = Vec::new();
+        self.new_view_offsets = Vec::new();
+        self.packed = None;
+    }
 }
 
 /// Old data first (only the kept views when orphans are dropped, else every buffer whole),
@@ -2558,13 +2572,20 @@ fn edit_buffer_views_packed<'d>(
                                     .set_member(extensions, compress::EXT, text)
                                     .map_err(edit_error)?
                             }
-                            _ => editor
+                            // Something other than an object (not valid glTF): replaced.
+                            Some(_) => editor
                                 .set_member(
                                     view,
                                     "extensions",
                                     created::meshopt_extensions(&extension)?,
                                 )
                                 .map_err(edit_error)?,
+                            None => {
+                                let later = MeshoptExtensions(packed.fresh[k].1, data);
+                                editor
+                                    .insert_member_deferred(view, "extensions", Box::new(later))
+                                    .map_err(edit_error)?
+                            }
                         }
                     }
                 }
@@ -2572,6 +2593,22 @@ fn edit_buffer_views_packed<'d>(
         }
     }
     Ok(())
+}
+
+/// A freshly compressed view's `extensions` object, `{"EXT_meshopt_compression": …}` for its
+/// encoding with the compressed bytes at the given offset of the data buffer: written when the
+/// output's JSON is made. Held as text, the objects of a scene of many small views (about 100
+/// bytes each, for a quarter of a million views) were the editor's largest records.
+#[derive(Debug)]
+struct MeshoptExtensions(Encoding, usize);
+
+impl json::DeferredValue for MeshoptExtensions {
+    fn write(&self, out: &mut String) {
+        // Nothing where it does not serialize (a bug): the editor refuses an empty text when
+        // the edit is made, which reports it.
+        let text = created::meshopt_extensions(&self.0.extension(self.1));
+        out.push_str(text.as_deref().unwrap_or(""));
+    }
 }
 
 /// The buffers of a packed write: the data buffer, then the fallback buffer when any view is
