@@ -3,7 +3,8 @@
 //! It holds the layers above the pure crates: [`scene`] reads glTF, GLB and OBJ scenes, computes
 //! tangents with `tspace-tangent` and writes the scenes back through `tspace-json`'s lossless
 //! editor (and `tspace-meshopt`'s decoder); [`server`] is the HTTP service, [`cli`] the command
-//! line, and [`config`] the service's settings.
+//! line, [`config`] the service's settings, and [`memory`] the allocator's freed memory handed back
+//! where keeping it would raise the peak.
 //!
 //! The design: the server and the command line are thin transports over one scene entry point
 //! ([`scene::input::process`]), and the scene layer over crates that do pure computation on
@@ -13,5 +14,6 @@
 
 pub mod cli;
 pub mod config;
+pub mod memory;
 pub mod scene;
 pub mod server;

@@ -184,6 +184,8 @@ impl SceneArgs {
             compress: self.compress,
             normals: self.normals,
             normals_angle: self.normals_angle,
+            // A large document's freed tree would otherwise stay beside the output's JSON.
+            release_freed_memory: Some(crate::memory::give_back_freed_memory),
             ..SceneOptions::default()
         }
     }

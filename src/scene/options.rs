@@ -248,9 +248,9 @@ pub struct SceneOptions {
     pub in_pieces: bool,
     /// Called once the input's parse tree of a large document is freed, before the output's
     /// JSON is put together (see `gltf::write::RELEASE_FROM_JSON_BYTES`). That JSON is one
-    /// block too large to come from the tree's freed memory, so a long-running caller that
-    /// keeps freed memory for reuse (the service, see `server::memory`) holds both at once
-    /// unless it hands the tree's back here. `None` keeps it.
+    /// block too large to come from the tree's freed memory, so a caller holds both at once
+    /// unless it hands the tree's back here (the service and the command line do, see
+    /// `crate::memory`). `None` keeps it.
     pub release_freed_memory: Option<fn()>,
 }
 

@@ -30,9 +30,13 @@
 //! well raised the peak on the JSON-heavy scene without normals (27 MB) to 288 MB; handed
 //! back, 262 MB.
 //!
+//! The command line hands the tree's memory back the same way (see [`crate::memory`]).
+//!
 //! Tried before and not kept: a fixed *small* mapping threshold (128 KiB or 1 MiB), which
 //! kept every large buffer out of the heaps and halved the capacity in the load test, since
 //! every request's buffers were then faulted in afresh.
+
+pub use crate::memory::give_back_freed_memory;
 
 /// Blocks under this size come from the allocator's heaps; larger ones are mapped whole.
 pub(super) const MAPPED_FROM: usize = 8 << 20;
@@ -48,19 +52,5 @@ pub fn keep_freed_memory_for_reuse() {
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, MAPPED_FROM as i32);
         libc::mallopt(libc::M_TRIM_THRESHOLD, TRIMMED_FROM);
-    }
-}
-
-/// Returns the allocator's free memory to the system: the free pages inside every heap and
-/// the main heap's top. Called after a request whose body was refused at the limit, and by the
-/// scene layer once it has freed the parse tree of a large document
-/// ([`SceneOptions::release_freed_memory`](crate::scene::SceneOptions::release_freed_memory));
-/// its cost, a walk over the arenas (8–10 ms after a 27 MB JSON-heavy scene's tree), is small
-/// beside reading that body or building that tree.
-pub fn give_back_freed_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: malloc_trim only releases free memory; it is thread-safe.
-    unsafe {
-        libc::malloc_trim(0);
     }
 }
