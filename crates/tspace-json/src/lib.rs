@@ -2520,6 +2520,43 @@ mod tests {
         out
     }
 
+    /// The text does not depend on the order in which objects are edited: nested objects (an
+    /// outer object inserting right after an inner one that inserts too), empty ones, and
+    /// removals and replacements beside.
+    #[test]
+    fn objects_edited_in_any_order_render_alike() {
+        let s = r#"{"a":{"b":{},"c":{"d":1,"e":{}}},"f":{"g":2}}"#;
+        let render = |order: &[usize]| {
+            edited(s, |doc, ed| {
+                let root = doc.root();
+                let a = root.get("a").unwrap();
+                let c = a.get("c").unwrap();
+                let nodes = [
+                    root,
+                    a,
+                    a.get("b").unwrap(),
+                    c,
+                    c.get("e").unwrap(),
+                    root.get("f").unwrap(),
+                ];
+                for &i in order {
+                    ed.insert_member(nodes[i], &format!("new{i}"), i.to_string())
+                        .unwrap();
+                }
+                assert!(ed.remove_member(c, "d").unwrap());
+                ed.set_member(root.get("f").unwrap(), "g", "3").unwrap();
+            })
+        };
+        let forward = render(&[0, 1, 2, 3, 4, 5]);
+        assert_eq!(
+            forward,
+            r#"{"a":{"b":{"new2":2},"c":{"e":{"new4":4},"new3":3},"new1":1},"f":{"g":3,"new5":5},"new0":0}"#
+        );
+        for order in [[5, 4, 3, 2, 1, 0], [2, 0, 4, 1, 5, 3], [4, 2, 1, 5, 0, 3]] {
+            assert_eq!(render(&order), forward, "edited in the order {order:?}");
+        }
+    }
+
     const ODD: &str = "\r\n\t {  \"a\" :[1 ,2.50,-0, 1e400 ,0.1000000000000000055511151231257827,\
         18446744073709551616],\n\"s\":\"\\u00e9\\ud83d\\ude00\\/\\\"x\\\\\", \"é\": {\"ext\" :{}},\
         \"n\":null ,\"t\":true,\"f\":false, \"e\":[ ] }\n\n";
