@@ -309,15 +309,25 @@ fn generate_by_triangle(
         return SplitPlan::default();
     }
 
-    // Each vertex's tangents, one per side its corners take, worked out once.
+    // Each vertex's tangents, one per side its corners take, worked out once; and, where its
+    // corners take one side and that tangent is valid, the finished tangent every corner gets
+    // (`w == 0` elsewhere, never the `w` of a finished tangent).
+    let mut uniform = vec![[0.0f32; 4]; sums.len()];
     let finished: Vec<([[f32; 4]; 2], [bool; 2])> = sums
         .iter()
-        .map(|sums| {
+        .zip(&mut uniform)
+        .map(|(sums, uniform)| {
             let mut finished = ([[0.0; 4]; 2], [false; 2]);
             let taken = sums.sides_taken();
             for side in 0..2 {
                 if taken & (1 << side) != 0 {
                     (finished.0[side], finished.1[side]) = sums.tangent(side, mesh);
+                }
+            }
+            if taken.count_ones() == 1 {
+                let side = taken.trailing_zeros() as usize;
+                if finished.1[side] {
+                    *uniform = fallback::with_w_convention(finished.0[side], flip_w);
                 }
             }
             finished
@@ -329,7 +339,16 @@ fn generate_by_triangle(
     let mut repairs = Vec::new();
     for (triangle, &sign) in signs.iter().enumerate() {
         for corner in 3 * triangle..3 * triangle + 3 {
-            let class = weld.class_of_vertex[mesh.indices[corner] as usize] as usize;
+            let vertex = mesh.indices[corner] as usize;
+            let class = weld.class_of_vertex[vertex] as usize;
+            // Most vertices: one tangent for all their corners, so no other corner of this
+            // vertex can be given another, and a plain store does what `put` would, without
+            // reading the vertex's sums, its finished tangents and its slot first.
+            let only = uniform[class];
+            if only[3] != 0.0 {
+                shared.set_only_tangent(vertex, only);
+                continue;
+            }
             let side = sums[class].side_of(sign);
             let (tangents, valid) = &finished[class];
             let tangent = fallback::finish_corner(
