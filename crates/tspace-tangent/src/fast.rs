@@ -399,6 +399,7 @@ fn generate_by_vertex(
     let corner_class = weld.corner_classes(mesh.indices, parallel);
     let table = CornerTable::build_filtered(&corner_class, weld.class_count, |_| true, parallel);
 
+    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     // Per class: accumulate each handedness apart, then give every corner the sum of its side.
     let evaluate =
         |class: usize, repairs: &mut Vec<(u32, Problem)>, put: &mut dyn FnMut(usize, [f32; 4])| {
@@ -408,23 +409,32 @@ fn generate_by_vertex(
                 let corner = corner as usize;
                 sums.add(&faces[corner / 3], corner % 3, mesh.indices[corner]);
             }
-            // When every corner takes one tangent and it is valid, a corner whose vertex is the
-            // previous corner's has just been given it.
-            let one_side = sums.sides_taken().count_ones() <= 1;
-            let mut previous = NONE;
+            // Most vertices: every corner takes one side, and its tangent is valid. Each input
+            // vertex of the class is given it with a plain store, as on one thread, without
+            // reading the corners' faces again or the vertices' slots.
+            let taken = sums.sides_taken();
+            if taken.count_ones() == 1 {
+                let side = taken.trailing_zeros() as usize;
+                let (t, valid) = sums.tangent(side, mesh);
+                if valid {
+                    let t = fallback::with_w_convention(t, flip_w);
+                    let mut previous = NONE;
+                    for &corner in corners {
+                        let vertex = mesh.indices[corner as usize];
+                        if vertex != previous {
+                            shared.set_only_tangent(vertex as usize, t);
+                            previous = vertex;
+                        }
+                    }
+                    return;
+                }
+            }
             // At most two tangents per vertex, one per side, each worked out once.
             let mut finished: [Option<([f32; 4], bool)>; 2] = [None; 2];
             for &corner in corners {
                 let corner = corner as usize;
                 let side = sums.side_of(faces[corner / 3].sign);
                 let (t, valid) = *finished[side].get_or_insert_with(|| sums.tangent(side, mesh));
-                if one_side && valid {
-                    let vertex = mesh.indices[corner];
-                    if vertex == previous {
-                        continue;
-                    }
-                    previous = vertex;
-                }
                 put(
                     corner,
                     fallback::finish_corner(mesh, corner, t, valid, flip_w, repairs),
@@ -432,7 +442,6 @@ fn generate_by_vertex(
             }
         };
 
-    let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     let run = |range: std::ops::Range<usize>| {
         let mut copies = Copies::default();
         let mut repairs = Vec::new();
