@@ -12,15 +12,15 @@
 //! goodput at twice it 10% (docs/benchmarks.md). Larger blocks are mapped and unmapped whole,
 //! as before.
 //!
-//! The thresholds bound what is kept. A body refused at the limit (a compression bomb decoded
-//! up to `--body-limit`) leaves that much freed in the arena of the connection thread that read
-//! it, while the next one lands in another thread's arena; so after such a refusal the free
-//! memory of every arena is handed back ([`give_back_freed_memory`]). Measured before any of
-//! this: two bombs refused one after the other grew the peak RSS by 63 MiB and then 130 MiB at
-//! a 64 MiB limit, and the server went on holding 63 MiB. `malloc_trim` cannot release the
-//! free top of a thread's heap, which the trim threshold bounds: with blocks up to 32 MiB from
-//! the heaps and 64 MiB kept at their tops (tried first; it would also have kept the buffers of
-//! scenes of tens of megabytes), two bombs left 34–95 MiB behind; with these thresholds,
+//! The thresholds bound what is kept. A body refused at the limit (a compression bomb decoded up to
+//! `--body-limit`) leaves that much freed in the arena of the connection thread that read it, while
+//! the next one lands in another thread's arena; so after such a refusal the free memory of every
+//! arena is handed back ([`give_back_freed_memory`](crate::memory::give_back_freed_memory)).
+//! Measured before any of this: two bombs refused one after the other grew the peak RSS by 63 MiB
+//! and then 130 MiB at a 64 MiB limit, and the server went on holding 63 MiB. `malloc_trim` cannot
+//! release the free top of a thread's heap, which the trim threshold bounds: with blocks up to 32
+//! MiB from the heaps and 64 MiB kept at their tops (tried first; it would also have kept the
+//! buffers of scenes of tens of megabytes), two bombs left 34–95 MiB behind; with these thresholds,
 //! 1–2 MiB.
 //!
 //! The same hand-back runs once more where one request frees much in small blocks and then
@@ -35,8 +35,6 @@
 //! Tried before and not kept: a fixed *small* mapping threshold (128 KiB or 1 MiB), which
 //! kept every large buffer out of the heaps and halved the capacity in the load test, since
 //! every request's buffers were then faulted in afresh.
-
-pub use crate::memory::give_back_freed_memory;
 
 /// Blocks under this size come from the allocator's heaps; larger ones are mapped whole.
 pub(super) const MAPPED_FROM: usize = 8 << 20;

@@ -327,7 +327,7 @@ async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Prob
     match upload {
         Ok(Err(refused)) if refused.code == ProblemCode::BodyTooLarge => {
             // What was read up to the limit is freed by now; see memory.rs.
-            super::memory::give_back_freed_memory();
+            crate::memory::give_back_freed_memory();
             Err(refused)
         }
         Ok(upload) => upload,
@@ -488,7 +488,7 @@ fn scene_options(app: &App, query: &SceneOptions, write: bool) -> SceneOptions {
             ..SceneLimits::default()
         },
         cancel: Cancel::new(),
-        release_freed_memory: Some(super::memory::give_back_freed_memory),
+        release_freed_memory: Some(crate::memory::give_back_freed_memory),
         ..query.clone()
     }
 }

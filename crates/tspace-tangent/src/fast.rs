@@ -216,6 +216,12 @@ impl VertexSums {
         }
     }
 
+    /// The side every corner takes, when they all take one.
+    fn only_side(&self) -> Option<usize> {
+        let taken = self.sides_taken();
+        (taken.count_ones() == 1).then(|| taken.trailing_zeros() as usize)
+    }
+
     /// The sides some corner takes (bit `side`).
     fn sides_taken(&self) -> u8 {
         if self.unsigned {
@@ -324,11 +330,10 @@ fn generate_by_triangle(
                     (finished.0[side], finished.1[side]) = sums.tangent(side, mesh);
                 }
             }
-            if taken.count_ones() == 1 {
-                let side = taken.trailing_zeros() as usize;
-                if finished.1[side] {
-                    *uniform = fallback::with_w_convention(finished.0[side], flip_w);
-                }
+            if let Some(side) = sums.only_side()
+                && finished.1[side]
+            {
+                *uniform = fallback::with_w_convention(finished.0[side], flip_w);
             }
             finished
         })
@@ -412,9 +417,7 @@ fn generate_by_vertex(
             // Most vertices: every corner takes one side, and its tangent is valid. Each input
             // vertex of the class is given it with a plain store, as on one thread, without
             // reading the corners' faces again or the vertices' slots.
-            let taken = sums.sides_taken();
-            if taken.count_ones() == 1 {
-                let side = taken.trailing_zeros() as usize;
+            if let Some(side) = sums.only_side() {
                 let (t, valid) = sums.tangent(side, mesh);
                 if valid {
                     let t = fallback::with_w_convention(t, flip_w);
