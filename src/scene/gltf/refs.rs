@@ -101,7 +101,8 @@ pub fn accessor_refs(root: &Node) -> Vec<Ref<'_>> {
     counted(|out| visit_accessor_refs(root, out))
 }
 
-fn visit_accessor_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
+/// Calls `out` with every accessor reference, as [`accessor_refs`] lists them.
+pub fn visit_accessor_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (m, mesh) in items(root.get("meshes")).iter().enumerate() {
         for (p, primitive) in items(mesh.get("primitives")).iter().enumerate() {
             let owner = Owner::Primitive(index32(m), index32(p));
@@ -152,7 +153,8 @@ pub fn view_refs(root: &Node) -> Vec<Ref<'_>> {
     counted(|out| visit_view_refs(root, out))
 }
 
-fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
+/// Calls `out` with every buffer-view reference, as [`view_refs`] lists them.
+pub fn visit_view_refs<'d>(root: &'d Node, out: &mut dyn FnMut(Ref<'d>)) {
     for (a, accessor) in items(root.get("accessors")).iter().enumerate() {
         let owner = Owner::Accessor(index32(a));
         if let Some((n, _)) = index(accessor.get("bufferView")) {
