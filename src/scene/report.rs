@@ -131,7 +131,7 @@ pub struct Dropped {
 
 // A scene may have a hundred thousand primitives, each with an entry held beside the scene's
 // tree at the scene layer's peak; a change that grows it should be a decision.
-const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 168);
+const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 144);
 
 /// Boxed parts keep an entry small when they are absent: a scene may have a hundred thousand
 /// primitives.
@@ -179,9 +179,11 @@ pub struct PrimitiveReport {
     pub morph_targets: Option<Box<MorphReport>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub audit: Option<Box<Audit>>,
-    /// How the primitive's geometry is stored, in and out.
+    /// How the primitive's geometry is stored, in and out. Boxed: it is written once the
+    /// output is, when the input's tree is gone, so an entry held through the write (the
+    /// writer's peak) is 24 bytes smaller.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub storage: Option<StorageReport>,
+    pub storage: Option<Box<StorageReport>>,
     #[serde(skip_serializing_if = "Notes::is_empty")]
     #[schema(value_type = Vec<String>)]
     pub notes: Notes,
@@ -853,10 +855,10 @@ mod tests {
             action: PrimitiveAction::Overwritten,
             uses: Some(FrameUse::ClearcoatNormalTexture),
             shared_with: Some([1, 3]),
-            storage: Some(StorageReport {
+            storage: Some(Box::new(StorageReport {
                 why: Some(StorageChange::Uncompressed),
                 ..StorageReport::default()
-            }),
+            })),
             ..PrimitiveReport::default()
         };
         let json = serde_json::to_value(&entry).unwrap();

@@ -964,13 +964,13 @@ fn report_storage(
             continue;
         };
         let output = after.as_ref().and_then(|a| a.primitive(key));
-        entry.storage = Some(StorageReport {
+        entry.storage = Some(Box::new(StorageReport {
             compression_in: input.compression,
             compression_out: output.map(|o| o.compression),
             bytes_in: input.bytes,
             bytes_out: output.map(|o| o.bytes),
             why: output.and_then(|o| why_storage_changed(input.compression, o.compression)),
-        });
+        }));
     }
     Ok(())
 }
