@@ -1904,7 +1904,8 @@ impl<'d, 'a> Editor<'d, 'a> {
     pub fn render(&self) -> Result<String, EditError> {
         let plan = self.plan()?;
         let arrays: Vec<&ArrayEdit> = self.arrays.values().collect();
-        let objects: Vec<&ObjectEdit<'d>> = self.objects.values().collect();
+        let mut objects: Vec<&ObjectEdit<'d>> = Vec::with_capacity(self.objects.len());
+        objects.extend(self.objects.values());
         let mut out = String::with_capacity(plan.len);
         let inserts = Inserts {
             replacement: |i: u32| {
@@ -1953,10 +1954,13 @@ impl<'d, 'a> Editor<'d, 'a> {
             .map(|replacement| replacement.text)
             .collect();
         // Only the members are kept of each object's record (the plan has its layout).
-        let objects = std::mem::take(&mut self.objects)
-            .into_values()
-            .map(|edit| edit.added)
-            .collect();
+        // Room for them all at once: the merged records do not say how many they are.
+        let mut objects = Vec::with_capacity(self.objects.len());
+        objects.extend(
+            std::mem::take(&mut self.objects)
+                .into_values()
+                .map(|edit| edit.added),
+        );
         let elements = std::mem::take(&mut self.arrays)
             .into_values()
             .map(|edit| edit.added)
