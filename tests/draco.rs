@@ -193,7 +193,7 @@ fn draco_fixtures_round_trip_with_reference_tangents() {
                 .report
                 .primitives
                 .iter()
-                .map(|p| p.reason)
+                .map(|p| p.reason.map(|r| r.as_str()))
                 .collect();
             assert!(
                 reasons.iter().all(|r| *r == Some("no_texcoords")),

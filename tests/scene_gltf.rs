@@ -119,7 +119,11 @@ fn glb_without_normal_maps_comes_back_byte_for_byte() {
     let input = fixture("Box/Box.glb");
     let done = process(&input, &NoResources, &SceneOptions::default()).unwrap();
     assert_eq!(done.report.primitives[0].action, "skipped");
-    assert_eq!(done.report.primitives[0].reason, Some("no_normal_map"));
+    assert!(
+        done.report.primitives[0]
+            .reason
+            .is_some_and(|r| r == "no_normal_map")
+    );
     assert_eq!(done.bytes.unwrap(), input);
 }
 
@@ -340,7 +344,11 @@ fn quantized_and_sparse_primitives_get_tangents_with_the_axis_method() {
         },
     )
     .unwrap();
-    assert_eq!(skipped.report.primitives[0].reason, Some("no_texcoords"));
+    assert!(
+        skipped.report.primitives[0]
+            .reason
+            .is_some_and(|r| r == "no_texcoords")
+    );
     let done = process(
         &gltf,
         &parts,

@@ -65,7 +65,7 @@ fn spider_with_its_mtl_follows_the_materials() {
         done.report
             .primitives
             .iter()
-            .all(|p| p.reason == Some("no_normal_map")),
+            .all(|p| p.reason.is_some_and(|r| r == "no_normal_map")),
         "{:?}",
         done.report.primitives
     );
@@ -113,7 +113,7 @@ fn an_obj_without_uvs_is_converted_with_its_primitives_skipped_unless_axis() {
     let skipped = process(InputKind::Obj, &obj, &PartSet::new(), &all).unwrap();
     let entry = &skipped.report.primitives[0];
     assert_eq!(
-        (entry.action.as_str(), entry.reason),
+        (entry.action.as_str(), entry.reason.map(|r| r.as_str())),
         ("skipped", Some("no_texcoords"))
     );
     assert!(skipped.bytes.is_some());

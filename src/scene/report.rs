@@ -131,7 +131,7 @@ pub struct Dropped {
 
 // A scene may have a hundred thousand primitives, each with an entry held beside the scene's
 // tree at the scene layer's peak; a change that grows it should be a decision.
-const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 144);
+const _: () = assert!(std::mem::size_of::<PrimitiveReport>() == 120);
 
 /// Boxed parts keep an entry small when they are absent: a scene may have a hundred thousand
 /// primitives.
@@ -145,7 +145,7 @@ pub struct PrimitiveReport {
     // Shared by the mesh's primitives: a scene may have a hundred thousand in one mesh.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<String>)]
-    pub mesh_name: Option<Arc<str>>,
+    pub mesh_name: Option<MeshName>,
     // As the file spells it, whether or not that material exists: 64 bits, unlike the positions.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<usize>)]
@@ -155,7 +155,8 @@ pub struct PrimitiveReport {
     pub action: PrimitiveAction,
     /// For `skipped`: a stable code and a sentence.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub reason: Option<&'static str>,
+    #[schema(value_type = Option<String>)]
+    pub reason: Option<SkipCode>,
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<String>)]
     pub message: Option<Box<str>>,
@@ -179,9 +180,9 @@ pub struct PrimitiveReport {
     pub morph_targets: Option<Box<MorphReport>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub audit: Option<Box<Audit>>,
-    /// How the primitive's geometry is stored, in and out. Boxed: it is written once the
-    /// output is, when the input's tree is gone, so an entry held through the write (the
-    /// writer's peak) is 24 bytes smaller.
+    // Boxed: it is written once the output is, when the input's tree is gone, so that an
+    // entry held through the write (the writer's peak) is 24 bytes smaller.
+    /// How the primitive's geometry is stored, in and out.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub storage: Option<Box<StorageReport>>,
     #[serde(skip_serializing_if = "Notes::is_empty")]
@@ -255,7 +256,56 @@ macro_rules! written_as_str {
     )*};
 }
 
-written_as_str!(PrimitiveAction, FrameUse, StorageChange);
+/// A mesh's name, shared by its primitives' entries and plans: one pointer, where an `Arc<str>`
+/// is two, and a scene may have a hundred thousand primitives in one mesh. Reads as a `str`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MeshName(Arc<Box<str>>);
+
+impl From<&str> for MeshName {
+    fn from(name: &str) -> MeshName {
+        MeshName(Arc::new(name.into()))
+    }
+}
+
+impl std::ops::Deref for MeshName {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl Serialize for MeshName {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self)
+    }
+}
+
+/// Why a primitive was skipped, written as a stable code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SkipCode {
+    NotTriangles,
+    NoMaterial,
+    NoNormalMap,
+    HasTangents,
+    NoPositions,
+    NoTexcoords,
+}
+
+impl SkipCode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SkipCode::NotTriangles => "not_triangles",
+            SkipCode::NoMaterial => "no_material",
+            SkipCode::NoNormalMap => "no_normal_map",
+            SkipCode::HasTangents => "has_tangents",
+            SkipCode::NoPositions => "no_positions",
+            SkipCode::NoTexcoords => "no_texcoords",
+        }
+    }
+}
+
+written_as_str!(PrimitiveAction, FrameUse, StorageChange, SkipCode);
 
 /// A short list held as one pointer, null while it is empty: a report holds a dozen per
 /// primitive (the notes, and the first few indices of every tally) and a scene may have a

@@ -126,9 +126,10 @@ pub struct Number(Text);
 const _: () = assert!(std::mem::size_of::<Text>() == 16);
 const _: () = assert!(std::mem::size_of::<Node>() == 32);
 const _: () = assert!(std::mem::size_of::<Member>() == 48);
-// An editor may hold one of each per edited object, a quarter of a million of them. An added
-// member of 40 bytes takes the same 48-byte block of the allocator as one of 32 would.
-const _: () = assert!(std::mem::size_of::<ObjectEdit<'static>>() == 32);
+// An editor may hold one of each per edited object, a quarter of a million of them (and a list
+// of added members for most). An added member of 40 bytes takes the same 48-byte block of the
+// allocator as one of 32 would.
+const _: () = assert!(std::mem::size_of::<ObjectEdit<'static>>() == 24);
 const _: () = assert!(std::mem::size_of::<(Text, NewValue)>() == 40);
 const _: () = assert!(std::mem::size_of::<Replacement>() == 24);
 const _: () = assert!(std::mem::size_of::<Piece>() == 16);
@@ -1421,10 +1422,12 @@ struct ObjectEdit<'d> {
     object: &'d Node,
     /// Per original member, whether it is removed; empty while none is.
     removed: Thin<bool>,
-    /// Added members, in order. A boxed slice, not a [`Thin`] list: one allocation for the
-    /// usual single member where a `Thin` takes two, for eight bytes more in the record.
-    added: Box<[(Text, NewValue)]>,
+    /// Its added members: a list of [`MemberLists`], or [`NO_MEMBERS`].
+    added: u32,
 }
+
+/// An [`ObjectEdit`] that adds no member.
+const NO_MEMBERS: u32 = u32::MAX;
 
 #[derive(Debug)]
 enum NewValue {
@@ -1443,6 +1446,23 @@ enum NewValue {
 }
 
 impl NewValue {
+    /// A value that writes the same text, for a shared list of members that is about to change.
+    fn duplicate(&self) -> NewValue {
+        match self {
+            NewValue::Short(text) => NewValue::Short(text.clone()),
+            NewValue::Long(text) => NewValue::Long(text.clone()),
+            NewValue::Deferred { value, .. } => {
+                let mut text = String::new();
+                value.write(&mut text);
+                NewValue::text(text)
+            }
+            NewValue::Array(array) => NewValue::Array(Box::new(NewArray {
+                items: array.items.clone(),
+                count: array.count,
+            })),
+        }
+    }
+
     fn text(text: String) -> NewValue {
         if text.len() <= INLINE {
             NewValue::Short(Text::new(&text))
@@ -1528,6 +1548,7 @@ struct ArrayEdit {
 struct ObjectEdits<'d> {
     in_order: Vec<Vec<ObjectEdit<'d>>>,
     others: BTreeMap<u32, ObjectEdit<'d>>,
+    lists: MemberLists,
 }
 
 impl<'d> ObjectEdits<'d> {
@@ -1549,10 +1570,53 @@ impl<'d> ObjectEdits<'d> {
         Some((block, i))
     }
 
+    fn get(&self, open: u32) -> Option<&ObjectEdit<'d>> {
+        match self.position(open) {
+            Some((block, i)) => self.in_order.get(block)?.get(i),
+            None => self.others.get(&open),
+        }
+    }
+
     fn get_mut(&mut self, open: u32) -> Option<&mut ObjectEdit<'d>> {
         match self.position(open) {
             Some((block, i)) => self.in_order.get_mut(block)?.get_mut(i),
             None => self.others.get_mut(&open),
+        }
+    }
+
+    /// The members added to the object of `edit`.
+    fn added(&self, edit: &ObjectEdit<'_>) -> &[(Text, NewValue)] {
+        self.lists.get(edit.added)
+    }
+
+    /// Where member `key` is among those added to the object starting at `open`.
+    fn added_position(&self, open: u32, key: &str) -> Option<usize> {
+        let edit = self.get(open)?;
+        self.added(edit).iter().position(|(k, _)| k == key)
+    }
+
+    /// Whether the object starting at `open` has member `key`: an original one not removed, or
+    /// an added one.
+    fn has_key(&self, open: u32, key: &str) -> bool {
+        let Some(edit) = self.get(open) else {
+            return false;
+        };
+        let members = edit.object.as_object().unwrap_or(&[]);
+        let original = members
+            .iter()
+            .enumerate()
+            .any(|(i, m)| m.key == key && !is_removed(&edit.removed, i));
+        original || self.added_position(open, key).is_some()
+    }
+
+    /// Changes the members added to the object starting at `open` (see [`MemberLists::change`]).
+    fn change_added(&mut self, open: u32, change: impl FnOnce(&mut Vec<(Text, NewValue)>)) {
+        let edit = match self.position(open) {
+            Some((block, i)) => self.in_order.get_mut(block).and_then(|b| b.get_mut(i)),
+            None => self.others.get_mut(&open),
+        };
+        if let Some(edit) = edit {
+            self.lists.change(&mut edit.added, change);
         }
     }
 
@@ -1583,14 +1647,103 @@ impl<'d> ObjectEdits<'d> {
         )
     }
 
-    /// The records in their objects' text order, each block freed once it is read.
-    fn into_values(self) -> impl Iterator<Item = ObjectEdit<'d>> {
-        merged(
+    /// The records in their objects' text order, each block freed once it is read, and the
+    /// lists of added members they name.
+    #[allow(clippy::type_complexity)]
+    fn into_parts(
+        self,
+    ) -> (
+        impl Iterator<Item = ObjectEdit<'d>>,
+        Vec<Box<[(Text, NewValue)]>>,
+    ) {
+        let records = merged(
             self.in_order.into_iter().flatten(),
             self.others.into_values(),
             ObjectEdit::open,
-        )
+        );
+        (records, self.lists.lists)
     }
+}
+
+/// The members the edited objects add, as lists their records name by index. A list equal to
+/// the one made just before it is not made: it is the previous one, shared, and copied before
+/// either object's members change. Primitives that share a geometry each gain the same
+/// `"TANGENT": 4`, and a list each (48 bytes of the allocator) was 4.8 MB of the 100,000 such
+/// primitives of the `whole_path` bench's shared-geometry scene, at the write's peak.
+#[derive(Debug, Default)]
+struct MemberLists {
+    lists: Vec<Box<[(Text, NewValue)]>>,
+    /// Per list, whether more than one record names it.
+    shared: Vec<bool>,
+}
+
+impl MemberLists {
+    fn get(&self, list: u32) -> &[(Text, NewValue)] {
+        self.lists.get(list as usize).map_or(&[], |list| &list[..])
+    }
+
+    /// Changes the list `slot` names with `change`: in place when it is the slot's own, else
+    /// (shared, or none yet) as a new list that the slot then names.
+    fn change(&mut self, slot: &mut u32, change: impl FnOnce(&mut Vec<(Text, NewValue)>)) {
+        let i = *slot as usize;
+        let own = self.shared.get(i) == Some(&false);
+        let mut members = match self.lists.get_mut(i) {
+            Some(list) if own => std::mem::take(list).into_vec(),
+            Some(list) => list
+                .iter()
+                .map(|(key, value)| (key.clone(), value.duplicate()))
+                .collect(),
+            None => Vec::new(),
+        };
+        change(&mut members);
+        let members = members.into_boxed_slice();
+        match self.lists.get_mut(i) {
+            Some(list) if own => *list = members,
+            _ => {
+                self.lists.push(members);
+                self.shared.push(false);
+                *slot = index32(self.lists.len() - 1);
+            }
+        }
+        self.share_with_previous(slot);
+    }
+
+    /// When the list `slot` names is the last one made and holds what the one before it holds,
+    /// the slot names that one instead and the last goes.
+    fn share_with_previous(&mut self, slot: &mut u32) {
+        let i = *slot as usize;
+        if i == 0 || i + 1 != self.lists.len() {
+            return;
+        }
+        let same = match (self.lists.get(i - 1), self.lists.get(i)) {
+            (Some(previous), Some(last)) => same_texts(previous, last),
+            _ => false,
+        };
+        if same {
+            self.lists.pop();
+            self.shared.pop();
+            if let Some(shared) = self.shared.get_mut(i - 1) {
+                *shared = true;
+            }
+            *slot = index32(i - 1);
+        }
+    }
+}
+
+/// Whether two lists of members hold the same keys and the same texts. A value written when
+/// the text is made, or an array that grows, is never taken for another.
+fn same_texts(a: &[(Text, NewValue)], b: &[(Text, NewValue)]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|((ka, va), (kb, vb))| {
+            ka == kb && va.as_text().is_some() && va.as_text() == vb.as_text()
+        })
+}
+
+/// Adds member `key` at the end of `members`.
+fn push_member(members: &mut Vec<(Text, NewValue)>, key: &str, value: NewValue) {
+    // Room for one more: the list is boxed to its length again.
+    members.reserve_exact(1);
+    members.push((Text::new(key), value));
 }
 
 /// Two sequences, each in the order of `key`, as one in that order.
@@ -1698,11 +1851,13 @@ impl<'d, 'a> Editor<'d, 'a> {
         text: impl Into<String>,
     ) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
-        let edit = self.object_edit(object)?;
-        if edit.has_key(key) {
+        let open = self.object_edit(object)?.open();
+        if self.objects.has_key(open, key) {
             return Err(EditError::MemberExists { key: key.into() });
         }
-        edit.add(key, NewValue::text(text));
+        let value = NewValue::text(text);
+        self.objects
+            .change_added(open, |members| push_member(members, key, value));
         Ok(())
     }
 
@@ -1718,8 +1873,8 @@ impl<'d, 'a> Editor<'d, 'a> {
         let mut text = String::new();
         value.write(&mut text);
         let text = checked_text(text)?;
-        let edit = self.object_edit(object)?;
-        if edit.has_key(key) {
+        let open = self.object_edit(object)?.open();
+        if self.objects.has_key(open, key) {
             return Err(EditError::MemberExists { key: key.into() });
         }
         // A text past 4 GiB is held as it is.
@@ -1727,7 +1882,8 @@ impl<'d, 'a> Editor<'d, 'a> {
             Ok(len) => NewValue::Deferred { len, value },
             Err(_) => NewValue::text(text),
         };
-        edit.add(key, new);
+        self.objects
+            .change_added(open, |members| push_member(members, key, new));
         Ok(())
     }
 
@@ -1740,31 +1896,41 @@ impl<'d, 'a> Editor<'d, 'a> {
     ) -> Result<(), EditError> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
-        if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
-            *value = NewValue::text(text);
-            return Ok(());
-        }
+        let open = edit.open();
         let existing = object
             .as_object()
-            .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
+            .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key))
+            .filter(|&(i, _)| !is_removed(&edit.removed, i));
+        if let Some(i) = self.objects.added_position(open, key) {
+            let value = NewValue::text(text);
+            self.objects.change_added(open, |members| {
+                if let Some((_, old)) = members.get_mut(i) {
+                    *old = value;
+                }
+            });
+            return Ok(());
+        }
         match existing {
-            Some((i, member)) if !is_removed(&edit.removed, i) => {
-                self.push_replacement(member.value.span(), text)?;
+            Some((_, member)) => self.push_replacement(member.value.span(), text)?,
+            None => {
+                let value = NewValue::text(text);
+                self.objects
+                    .change_added(open, |members| push_member(members, key, value));
             }
-            _ => edit.add(key, NewValue::text(text)),
         }
         Ok(())
     }
 
     /// Removes member `key` (with its comma) from `object`. Returns whether it was there.
     pub fn remove_member(&mut self, object: &'d Node, key: &str) -> Result<bool, EditError> {
-        let edit = self.object_edit(object)?;
-        if let Some(i) = edit.added.iter().position(|(k, _)| k == key) {
-            let mut added = std::mem::take(&mut edit.added).into_vec();
-            added.remove(i);
-            edit.added = added.into_boxed_slice();
+        let open = self.object_edit(object)?.open();
+        if let Some(i) = self.objects.added_position(open, key) {
+            self.objects.change_added(open, |members| {
+                members.remove(i);
+            });
             return Ok(true);
         }
+        let edit = self.object_edit(object)?;
         let members = object.as_object().unwrap_or(&[]);
         let found = (0..members.len()).find(|&i| {
             members.get(i).is_some_and(|m| m.key == key) && !is_removed(&edit.removed, i)
@@ -1830,19 +1996,29 @@ impl<'d, 'a> Editor<'d, 'a> {
     ) -> Result<usize, EditError> {
         let text = checked_text(text.into())?;
         let edit = self.object_edit(object)?;
-        if let Some((_, value)) = edit.added.iter_mut().find(|(k, _)| k == key) {
-            return match value {
-                NewValue::Array(array) => {
+        let open = edit.open();
+        if let Some(i) = self.objects.added_position(open, key) {
+            let is_array = self.objects.get(open).is_some_and(|edit| {
+                matches!(
+                    self.objects.added(edit).get(i),
+                    Some((_, NewValue::Array(_)))
+                )
+            });
+            if !is_array {
+                return Err(EditError::MemberExists { key: key.into() });
+            }
+            let mut index = 0;
+            self.objects.change_added(open, |members| {
+                if let Some((_, NewValue::Array(array))) = members.get_mut(i) {
                     array.items.push(',');
                     array.items.push_str(&text);
                     array.count += 1;
-                    Ok(array.count - 1)
+                    index = array.count - 1;
                 }
-                NewValue::Short(_) | NewValue::Long(_) | NewValue::Deferred { .. } => {
-                    Err(EditError::MemberExists { key: key.into() })
-                }
-            };
+            });
+            return Ok(index);
         }
+        let edit = self.object_edit(object)?;
         let existing = object
             .as_object()
             .and_then(|ms| ms.iter().enumerate().find(|(_, m)| m.key == key));
@@ -1855,7 +2031,8 @@ impl<'d, 'a> Editor<'d, 'a> {
                     items: text,
                     count: 1,
                 }));
-                edit.add(key, items);
+                self.objects
+                    .change_added(open, |members| push_member(members, key, items));
                 Ok(0)
             }
         }
@@ -1891,7 +2068,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             let edit = ObjectEdit {
                 object,
                 removed: Thin::default(),
-                added: Box::default(),
+                added: NO_MEMBERS,
             };
             self.objects.insert(edit);
         }
@@ -1921,7 +2098,7 @@ impl<'d, 'a> Editor<'d, 'a> {
                 let layout = plan.layouts.get(i as usize).copied().unwrap_or_default();
                 let added = objects
                     .get(i as usize)
-                    .map_or(&[][..], |edit| &edit.added[..]);
+                    .map_or(&[][..], |edit| self.objects.added(edit));
                 (layout, added)
             },
         };
@@ -1956,11 +2133,8 @@ impl<'d, 'a> Editor<'d, 'a> {
         // Only the members are kept of each object's record (the plan has its layout).
         // Room for them all at once: the merged records do not say how many they are.
         let mut objects = Vec::with_capacity(self.objects.len());
-        objects.extend(
-            std::mem::take(&mut self.objects)
-                .into_values()
-                .map(|edit| edit.added),
-        );
+        let (records, member_lists) = std::mem::take(&mut self.objects).into_parts();
+        objects.extend(records.map(|edit| edit.added));
         let elements = std::mem::take(&mut self.arrays)
             .into_values()
             .map(|edit| edit.added)
@@ -1972,6 +2146,7 @@ impl<'d, 'a> Editor<'d, 'a> {
             replacements,
             elements,
             objects,
+            member_lists,
             layouts,
             skips,
             len,
@@ -1989,10 +2164,9 @@ impl<'d, 'a> Editor<'d, 'a> {
             .arrays
             .values()
             .map(|edit| removal_runs(&edit.removed) + usize::from(edit.added_count > 0));
-        let objects = self
-            .objects
-            .values()
-            .map(|edit| removal_runs(&edit.removed) + usize::from(!edit.added.is_empty()));
+        let objects = self.objects.values().map(|edit| {
+            removal_runs(&edit.removed) + usize::from(!self.objects.added(edit).is_empty())
+        });
         let count = self.replacements.len() + arrays.sum::<usize>() + objects.sum::<usize>();
         let mut pieces = Vec::with_capacity(count);
         let mut inserted = 0usize;
@@ -2014,8 +2188,9 @@ impl<'d, 'a> Editor<'d, 'a> {
         }
         let mut layouts = Vec::with_capacity(self.objects.len());
         for (i, edit) in self.objects.values().enumerate() {
-            let layout = edit.pieces(self.doc, index32(i), &mut pieces)?;
-            inserted += members_len(source, layout, &edit.added);
+            let added = self.objects.added(edit);
+            let layout = edit.pieces(self.doc, (index32(i), !added.is_empty()), &mut pieces)?;
+            inserted += members_len(source, layout, added);
             layouts.push(layout);
         }
         // An insertion at the start of a replaced span goes before it. Pieces with one span
@@ -2257,7 +2432,9 @@ pub struct Rendered<'e> {
     /// edited array's added elements and each edited object's added members, in text order.
     replacements: Vec<Text>,
     elements: Vec<Chunks>,
-    objects: Vec<Box<[(Text, NewValue)]>>,
+    /// Per edited object, the list in `member_lists` of the members it adds.
+    objects: Vec<u32>,
+    member_lists: Vec<Box<[(Text, NewValue)]>>,
     /// Where each edited object's members go, and the layout they copy.
     layouts: Vec<MemberLayout>,
     /// How much of each edited array's added text to leave out.
@@ -2287,9 +2464,9 @@ impl Rendered<'_> {
             },
             members: |i: u32| {
                 let layout = self.layouts.get(i as usize).copied().unwrap_or_default();
-                let added = self
-                    .objects
-                    .get(i as usize)
+                let list = self.objects.get(i as usize).copied();
+                let added = list
+                    .and_then(|list| self.member_lists.get(list as usize))
                     .map_or(&[][..], |added| &added[..]);
                 (layout, added)
             },
@@ -2393,31 +2570,12 @@ impl ObjectEdit<'_> {
         self.object.start
     }
 
-    /// Whether the edited object has member `key`: an original one not removed, or an added
-    /// one.
-    fn has_key(&self, key: &str) -> bool {
-        let members = self.object.as_object().unwrap_or(&[]);
-        let original = members
-            .iter()
-            .enumerate()
-            .any(|(i, m)| m.key == key && !is_removed(&self.removed, i));
-        original || self.added.iter().any(|(k, _)| k == key)
-    }
-
-    /// Adds a member.
-    fn add(&mut self, key: &str, value: NewValue) {
-        let mut added = std::mem::take(&mut self.added).into_vec();
-        added.reserve_exact(1);
-        added.push((Text::new(key), value));
-        self.added = added.into_boxed_slice();
-    }
-
     /// The removals' pieces and the added members' (at the end of the object, `Members(index)`);
     /// returns the layout the added members copy.
     fn pieces(
         &self,
         doc: &Document<'_>,
-        index: u32,
+        (index, adds): (u32, bool),
         out: &mut Vec<Piece>,
     ) -> Result<MemberLayout, EditError> {
         let source = doc.source;
@@ -2433,7 +2591,7 @@ impl ObjectEdit<'_> {
 
         removal_pieces(n, removed, start, end, source, out)?;
 
-        if self.added.is_empty() {
+        if !adds {
             return Ok(MemberLayout::default());
         }
         // New members copy the layout of the last existing ones: the whitespace before a key,
@@ -2999,6 +3157,36 @@ mod tests {
             assert!(ed.remove_member(doc.root(), "b").unwrap());
         });
         assert_eq!(out, format!("{{\"a\":{long},\"c\":3,\"d\":{long}}}"));
+    }
+
+    #[test]
+    fn equal_added_members_are_shared_and_copied_before_either_changes() {
+        let s = r#"[{"a":1},{"a":2},{"a":3},{"a":4},{},{}]"#;
+        let out = edited(s, |doc, ed| {
+            let items = doc.root().as_array().unwrap();
+            for item in &items[..4] {
+                ed.insert_member(item, "t", "9").unwrap();
+            }
+            assert_eq!(ed.objects.lists.lists.len(), 1, "four objects, one list");
+            ed.set_member(&items[1], "t", "7").unwrap();
+            ed.insert_member(&items[2], "u", "true").unwrap();
+            assert!(ed.remove_member(&items[3], "t").unwrap());
+            ed.push_to_array_member(&items[0], "v", "1").unwrap();
+            assert_eq!(ed.push_to_array_member(&items[0], "v", "2"), Ok(1));
+            // Values written when the text is made, and arrays, are each their own.
+            for item in &items[4..] {
+                ed.insert_member_deferred(item, "d", Box::new(Counted("n", 1)))
+                    .unwrap();
+                ed.push_to_array_member(item, "w", "0").unwrap();
+            }
+            ed.push_to_array_member(&items[5], "w", "5").unwrap();
+            // The shared list (named by none now), the four copies, and the last two objects'.
+            assert_eq!(ed.objects.lists.lists.len(), 7);
+        });
+        assert_eq!(
+            out,
+            r#"[{"a":1,"t":9,"v":[1,2]},{"a":2,"t":7},{"a":3,"t":9,"u":true},{"a":4},{"d":{"n":1},"w":[0]},{"d":{"n":1},"w":[0,5]}]"#
+        );
     }
 
     /// A value written from a number when the text is made.

@@ -9,8 +9,7 @@
 //! morph targets are computed once.
 
 use crate::scene::index32;
-use crate::scene::report::{FrameUse, Notes};
-use std::sync::Arc;
+use crate::scene::report::{FrameUse, MeshName, Notes, SkipCode};
 use tspace_json::Node;
 
 /// How a primitive's triangles are laid out (`mode`).
@@ -45,14 +44,14 @@ pub enum SkipReason {
 
 impl SkipReason {
     /// A stable code for reports.
-    pub fn code(self) -> &'static str {
+    pub fn code(self) -> SkipCode {
         match self {
-            SkipReason::NotTriangles { .. } => "not_triangles",
-            SkipReason::NoMaterial => "no_material",
-            SkipReason::NoNormalMap => "no_normal_map",
-            SkipReason::HasTangents => "has_tangents",
-            SkipReason::NoPositions => "no_positions",
-            SkipReason::NoTexcoords { .. } => "no_texcoords",
+            SkipReason::NotTriangles { .. } => SkipCode::NotTriangles,
+            SkipReason::NoMaterial => SkipCode::NoMaterial,
+            SkipReason::NoNormalMap => SkipCode::NoNormalMap,
+            SkipReason::HasTangents => SkipCode::HasTangents,
+            SkipReason::NoPositions => SkipCode::NoPositions,
+            SkipReason::NoTexcoords { .. } => SkipCode::NoTexcoords,
         }
     }
 
@@ -115,7 +114,7 @@ pub struct PrimitivePlan {
     pub mesh: u32,
     pub primitive: u32,
     /// Shared by the mesh's primitives (and their report entries).
-    pub mesh_name: Option<Arc<str>>,
+    pub mesh_name: Option<MeshName>,
     pub material: Option<usize>,
     /// The texture-coordinate set the tangent frame follows.
     pub texcoord_set: u32,
@@ -133,7 +132,7 @@ pub struct PrimitivePlan {
 
 // One per primitive, kept until the scene is written; a change that grows it should be a
 // decision.
-const _: () = assert!(std::mem::size_of::<PrimitivePlan>() == 80);
+const _: () = assert!(std::mem::size_of::<PrimitivePlan>() == 72);
 
 impl PrimitivePlan {
     /// `(mesh, primitive)`: where the primitive is in the document.
@@ -380,7 +379,7 @@ fn geometry_key(
 }
 
 fn plan_primitive(
-    (mesh, mesh_name): (usize, &Option<Arc<str>>),
+    (mesh, mesh_name): (usize, &Option<MeshName>),
     index: usize,
     primitive: &Node,
     materials: &[Node],
@@ -430,7 +429,7 @@ pub fn plan(
         .sum();
     let mut plans = Vec::with_capacity(count);
     for (mesh_index, mesh) in array(root, "meshes").iter().enumerate() {
-        let mesh_name = mesh.get("name").and_then(Node::as_str).map(Arc::from);
+        let mesh_name = mesh.get("name").and_then(Node::as_str).map(MeshName::from);
         for (index, primitive) in array(mesh, "primitives").iter().enumerate() {
             let (mut plan, key) = plan_primitive(
                 (mesh_index, &mesh_name),
