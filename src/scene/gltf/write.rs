@@ -119,15 +119,19 @@ impl PrimitiveEdits {
             self.edits.push(edit);
         }
         let edit = index32(self.edits.len() - 1);
+        let packed = (index32(key.0), index32(key.1));
+        // Edits come in order: the usual one goes at the end without a search.
+        if self.keys.last().is_none_or(|&(last, _)| last < packed) {
+            self.keys.push((packed, edit));
+            return;
+        }
         match self.position(&key) {
             Ok(i) => {
                 if let Some(slot) = self.keys.get_mut(i) {
                     slot.1 = edit;
                 }
             }
-            Err(i) => self
-                .keys
-                .insert(i, ((index32(key.0), index32(key.1)), edit)),
+            Err(i) => self.keys.insert(i, (packed, edit)),
         }
     }
 
@@ -761,14 +765,23 @@ fn orphan_accessors(root: &Node, changes: &Changes) -> Vec<bool> {
         .map_or(0, <[Node]>::len);
     let mut referenced_before = vec![false; count];
     let mut referenced_after = vec![false; count];
+    // A primitive's references come one after another: its edit is looked up once for them
+    // all (a lookup per reference was a twelfth of a scene of 100,000 small primitives).
+    let mut last: Option<(Owner, bool)> = None;
     refs::visit_accessor_refs(root, &mut |(owner, node)| {
         let i = refs::held(node);
         if let Some(r) = referenced_before.get_mut(i) {
             *r = true;
         }
-        if !is_edited(owner, changes)
-            && let Some(r) = referenced_after.get_mut(i)
-        {
+        let edited = match last {
+            Some((previous, edited)) if previous == owner => edited,
+            _ => {
+                let edited = is_edited(owner, changes);
+                last = Some((owner, edited));
+                edited
+            }
+        };
+        if !edited && let Some(r) = referenced_after.get_mut(i) {
             *r = true;
         }
     });
