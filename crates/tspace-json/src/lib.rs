@@ -1403,6 +1403,8 @@ pub struct Editor<'d, 'a> {
     /// that an edit of every buffer view's offset and length costs no allocation of its own.
     replacements: Vec<Replacement>,
     objects: ObjectEdits<'d>,
+    /// Keyed by the array's start offset, which is unique among containers (a document has few
+    /// edited arrays: the lists tspace appends to).
     arrays: BTreeMap<usize, ArrayEdit>,
 }
 
