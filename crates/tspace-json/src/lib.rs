@@ -3511,8 +3511,171 @@ mod tests {
         }
     }
 
+    /// What an edited object should read as: its members in order, each value's text (an
+    /// array as its elements), and for an original member whether an edit changed its value.
+    #[derive(Clone, Debug)]
+    struct ModelMember {
+        key: String,
+        value: ModelValue,
+        original: bool,
+        changed: bool,
+    }
+
+    #[derive(Clone, Debug)]
+    enum ModelValue {
+        Text(String),
+        Array(Vec<String>),
+    }
+
+    /// One edit of [`editor_matches_a_model`]: an operation, an object, a key and a value.
+    type ModelEdit = (u8, usize, u8, u8);
+
+    /// What the editor should do with an edit.
+    #[derive(Debug, PartialEq)]
+    enum Expected {
+        Accept,
+        Refuse,
+        /// An edit of text an earlier edit of an original member changed (its value replaced
+        /// or appended to): the editor reports the overlap when it renders, so such an edit is
+        /// left out of the sequence.
+        Overlaps,
+    }
+
+    fn model_key(key: u8) -> &'static str {
+        ["a", "b", "c", "d"][key as usize % 4]
+    }
+
+    fn model_value(value: u8) -> &'static str {
+        ["1", "22", "\"x\""][value as usize % 3]
+    }
+
+    /// Applies `edit` to the model of an object the way the editor documents it.
+    fn apply_to_model(members: &mut Vec<ModelMember>, (op, _, key, value): ModelEdit) -> Expected {
+        let (key, value) = (model_key(key).to_string(), model_value(value).to_string());
+        let at = members.iter().position(|m| m.key == key);
+        let found = at.map(|i| (i, members[i].original, members[i].changed));
+        let new = |value| ModelMember {
+            key: key.clone(),
+            value,
+            original: false,
+            changed: false,
+        };
+        match op % 5 {
+            // insert_member and insert_member_deferred
+            0 | 1 => {
+                if found.is_some() {
+                    return Expected::Refuse;
+                }
+                members.push(new(ModelValue::Text(value)));
+            }
+            // set_member
+            2 => match found {
+                Some((_, true, true)) => return Expected::Overlaps,
+                Some((i, original, _)) => {
+                    members[i].value = ModelValue::Text(value);
+                    members[i].changed = original;
+                }
+                None => members.push(new(ModelValue::Text(value))),
+            },
+            // remove_member
+            3 => match found {
+                Some((_, true, true)) => return Expected::Overlaps,
+                Some((i, _, _)) => {
+                    members.remove(i);
+                }
+                None => {}
+            },
+            // push_to_array_member
+            _ => match found {
+                Some((i, original, _)) => match &mut members[i].value {
+                    ModelValue::Array(items) => {
+                        items.push(value);
+                        members[i].changed = original;
+                    }
+                    ModelValue::Text(_) if original => return Expected::Overlaps,
+                    ModelValue::Text(_) => return Expected::Refuse,
+                },
+                None => members.push(new(ModelValue::Array(vec![value]))),
+            },
+        }
+        Expected::Accept
+    }
+
+    fn render_model(objects: &[Vec<ModelMember>]) -> String {
+        let object = |members: &Vec<ModelMember>| {
+            let parts: Vec<String> = members
+                .iter()
+                .map(|m| match &m.value {
+                    ModelValue::Text(text) => format!("\"{}\":{text}", m.key),
+                    ModelValue::Array(items) => format!("\"{}\":[{}]", m.key, items.join(",")),
+                })
+                .collect();
+            format!("{{{}}}", parts.join(","))
+        };
+        let objects: Vec<String> = objects.iter().map(object).collect();
+        format!("[{}]", objects.join(","))
+    }
+
+    /// A deferred value that writes a fixed text.
+    #[derive(Debug)]
+    struct Fixed(String);
+
+    impl DeferredValue for Fixed {
+        fn write(&self, out: &mut String) {
+            out.push_str(&self.0);
+        }
+    }
+
     proptest! {
-        /// An object's first key that repeats an earlier one is the error, however many keys
+        /// Any sequence of member edits on objects that start alike (so that their added
+        /// members are shared, then copied as they part) reads as the same edits made on a
+        /// plain list of members would.
+        #[test]
+        fn editor_matches_a_model(
+            edits in proptest::collection::vec((0..5u8, 0..6usize, 0..4u8, 0..3u8), 0..60),
+        ) {
+            let start = r#"{"a":1,"b":[0]}"#;
+            let source = format!("[{}]", [start; 6].join(","));
+            let original = |key: &str, value| ModelMember {
+                key: key.into(),
+                value,
+                original: true,
+                changed: false,
+            };
+            let members = vec![
+                original("a", ModelValue::Text("1".into())),
+                original("b", ModelValue::Array(vec!["0".into()])),
+            ];
+            let mut model = vec![members; 6];
+            let doc = parse(&source).unwrap();
+            let mut ed = doc.editor();
+            let objects = doc.root().as_array().unwrap();
+            for &edit in &edits {
+                let (op, object, key, value) = edit;
+                let expected = apply_to_model(&mut model[object], edit);
+                if expected == Expected::Overlaps {
+                    continue;
+                }
+                let (node, key, value) = (&objects[object], model_key(key), model_value(value));
+                let done = match op % 5 {
+                    0 => ed.insert_member(node, key, value).is_ok(),
+                    1 => ed
+                        .insert_member_deferred(node, key, Box::new(Fixed(value.into())))
+                        .is_ok(),
+                    2 => ed.set_member(node, key, value).is_ok(),
+                    3 => ed.remove_member(node, key).is_ok(),
+                    _ => ed.push_to_array_member(node, key, value).is_ok(),
+                };
+                prop_assert_eq!(done, expected == Expected::Accept, "{:?}", edit);
+            }
+            let rendered = ed.render().unwrap();
+            prop_assert_eq!(&rendered, &render_model(&model));
+            let mut joined = String::new();
+            ed.into_rendered().unwrap().for_each_part(|part| joined.push_str(part));
+            prop_assert_eq!(joined, rendered);
+        }
+
+                /// An object's first key that repeats an earlier one is the error, however many keys
         /// it has (small objects are checked pairwise, large ones sorted), spelled with
         /// escapes or not, in a whole parse and a pruned one.
         #[test]
