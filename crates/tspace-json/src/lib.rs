@@ -1608,7 +1608,7 @@ impl<'d> ObjectEdits<'d> {
             .iter()
             .enumerate()
             .any(|(i, m)| m.key == key && !is_removed(&edit.removed, i));
-        original || self.added_position(open, key).is_some()
+        original || self.added(edit).iter().any(|(k, _)| k == key)
     }
 
     /// Changes the members added to the object starting at `open` (see [`MemberLists::change`]).
