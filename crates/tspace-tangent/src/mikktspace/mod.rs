@@ -205,13 +205,15 @@ struct Piece {
 /// The normal used is the corner's own; the welded vertex's may differ from it only in the sign
 /// of a zero component, which changes no bit of the sums, angles and comparisons made from it.
 #[derive(Clone, Copy)]
+#[repr(C)]
 struct Contribution {
     /// The triangle's dP/du projected into the normal's plane and normalized, times the
     /// corner's angle in that plane: the term the reference adds for this corner.
     weighted_s: [f32; 3],
     /// The direction of dP/dv projected, as `trunc(127 x)` of its unit vector (zero where it
-    /// has none): enough to tell that no two frames around a vertex can be opposite.
-    t_direction: [i8; 3],
+    /// has none): enough to tell that no two frames around a vertex can be opposite. The fourth
+    /// place is always 0: four bytes are written (and compared) as one word.
+    t_direction: [i8; 4],
 }
 
 impl Contribution {
@@ -219,7 +221,7 @@ impl Contribution {
     /// value on the stack and copying it out stalled on every element).
     const ZERO: Contribution = Contribution {
         weighted_s: [0.0; 3],
-        t_direction: [0; 3],
+        t_direction: [0; 4],
     };
 }
 
@@ -303,23 +305,9 @@ impl FrameColumns {
             }
         }
         triangles.check(check);
-        let contribution = |corner: usize, k: usize| {
-            let [wx, wy, wz] = &self.corner_s[corner];
-            let [tx, ty, tz] = &self.corner_t[corner];
-            Contribution {
-                weighted_s: [wx[k], wy[k], wz[k]],
-                t_direction: [tx[k] as i8, ty[k] as i8, tz[k] as i8],
-            }
-        };
-        for (k, (out, flag)) in contributions
-            .iter_mut()
-            .zip(flags.iter_mut())
-            .enumerate()
-            .take(BATCH)
-        {
-            *out = [contribution(0, k), contribution(1, k), contribution(2, k)];
-            *flag = self.flags[k];
-        }
+        let len = contributions.len().min(BATCH);
+        store_contributions(&self.corner_s, &self.corner_t, &mut contributions[..len]);
+        flags[..len].copy_from_slice(&self.flags[..len]);
     }
 
     /// [`corner_arithmetic`] for corner `CORNER` of every triangle of the batch (a constant, so
@@ -343,6 +331,122 @@ impl FrameColumns {
             cos[k] = c;
             (csx[k], csy[k], csz[k]) = (s[0], s[1], s[2]);
             (ctx[k], cty[k], ctz[k]) = (t[0], t[1], t[2]);
+        }
+    }
+}
+
+/// Copies a batch's contributions (`weighted[corner][axis][k]`, `directions[corner][axis][k]`)
+/// out of their columns into `out`, one record per corner, for the batch's first `out.len()`
+/// triangles. Done one value at a time, this interleaving was a fifth of the triangle pass; with
+/// AVX2 it is a transpose of four columns into records, eight corners at a time (AVX-512 would
+/// do sixteen, but its intrinsics need a newer compiler than the crate asks for, and the records
+/// are stored one by one either way).
+#[inline(always)]
+fn store_contributions(
+    weighted: &[[[f32; BATCH]; 3]; 3],
+    directions: &[[[f32; BATCH]; 3]; 3],
+    out: &mut [[Contribution; 3]],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU was just found to support AVX2, the only requirement.
+        unsafe { store_contributions_avx2(weighted, directions, out) };
+        return;
+    }
+    store_contributions_portable(weighted, directions, out);
+}
+
+/// [`store_contributions`] one value at a time.
+#[inline(always)]
+fn store_contributions_portable(
+    weighted: &[[[f32; BATCH]; 3]; 3],
+    directions: &[[[f32; BATCH]; 3]; 3],
+    out: &mut [[Contribution; 3]],
+) {
+    for (k, out) in out.iter_mut().enumerate().take(BATCH) {
+        *out = [0, 1, 2].map(|corner| {
+            let [wx, wy, wz] = &weighted[corner];
+            let [tx, ty, tz] = &directions[corner];
+            Contribution {
+                weighted_s: [wx[k], wy[k], wz[k]],
+                t_direction: [tx[k] as i8, ty[k] as i8, tz[k] as i8, 0],
+            }
+        });
+    }
+}
+
+const _: () = assert!(std::mem::size_of::<Contribution>() == 16 && BATCH % 8 == 0);
+
+/// [`store_contributions`] with AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn store_contributions_avx2(
+    weighted: &[[[f32; BATCH]; 3]; 3],
+    directions: &[[[f32; BATCH]; 3]; 3],
+    out: &mut [[Contribution; 3]],
+) {
+    use std::arch::x86_64::*;
+    let len = out.len().min(BATCH);
+    let records = out.as_mut_ptr().cast::<Contribution>();
+    // SAFETY: the loads read 8 values from `block < len <= BATCH` on, within the columns (whose
+    // length, BATCH, is a multiple of 8); the stores write record `3k + corner` of `out` for
+    // `k < len <= out.len()`, and a `Contribution` is 16 bytes of plain data (`repr(C)`, no
+    // padding), so any four words are a valid one; `loadu` and `storeu` need no alignment. (One
+    // block for the whole body: the compilers the crate supports differ in which of the other
+    // intrinsics need one.)
+    unsafe {
+        for corner in 0..3 {
+            let [wx, wy, wz] = &weighted[corner];
+            let [tx, ty, tz] = &directions[corner];
+            for block in (0..len).step_by(8) {
+                let load = |column: &[f32; BATCH]| _mm256_loadu_ps(column.as_ptr().add(block));
+                let (x, y, z) = (load(wx), load(wy), load(wz));
+                // The direction's components truncated to bytes (|127 t| <= 127 and so in
+                // range; NaN gives 0x80000000, whose low byte is 0, as `NaN as i8` is) in one
+                // word.
+                let byte = |column: &[f32; BATCH]| {
+                    _mm256_and_si256(_mm256_cvttps_epi32(load(column)), _mm256_set1_epi32(0xff))
+                };
+                let t = _mm256_castsi256_ps(_mm256_or_si256(
+                    byte(tx),
+                    _mm256_or_si256(
+                        _mm256_slli_epi32::<8>(byte(ty)),
+                        _mm256_slli_epi32::<16>(byte(tz)),
+                    ),
+                ));
+                // In each 128-bit lane `l`, the four corners `4l..4l + 4` of the block: first
+                // pairs (x y x y, z t z t), then the pairs' halves put together as records.
+                let (xy_low, xy_high) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
+                let (zt_low, zt_high) = (_mm256_unpacklo_ps(z, t), _mm256_unpackhi_ps(z, t));
+                let join = |low: __m256, high: __m256, upper: bool| {
+                    let (low, high) = (_mm256_castps_pd(low), _mm256_castps_pd(high));
+                    _mm256_castpd_ps(if upper {
+                        _mm256_unpackhi_pd(low, high)
+                    } else {
+                        _mm256_unpacklo_pd(low, high)
+                    })
+                };
+                let by_corner = [
+                    join(xy_low, zt_low, false),
+                    join(xy_low, zt_low, true),
+                    join(xy_high, zt_high, false),
+                    join(xy_high, zt_high, true),
+                ];
+                for (lane, offset) in [0, 4].into_iter().enumerate() {
+                    for (j, &four) in by_corner.iter().enumerate() {
+                        let k = block + offset + j;
+                        if k >= len {
+                            break;
+                        }
+                        let record = if lane == 0 {
+                            _mm256_castps256_ps128(four)
+                        } else {
+                            _mm256_extractf128_ps::<1>(four)
+                        };
+                        _mm_storeu_ps(records.add(3 * k + corner).cast(), record);
+                    }
+                }
+            }
         }
     }
 }
@@ -1010,7 +1114,7 @@ impl Run {
 const T_DIRECTIONS_CLOSE: i32 = 1024;
 
 #[inline(always)]
-fn dot_i8(a: [i8; 3], b: [i8; 3]) -> i32 {
+fn dot_i8(a: [i8; 4], b: [i8; 4]) -> i32 {
     a.iter()
         .zip(&b)
         .map(|(&x, &y)| i32::from(x) * i32::from(y))
@@ -1135,6 +1239,53 @@ fn label_components(corners: &[u32], flags: &[u8], scratch: &mut Scratch) {
                 }
                 scratch.labels[next as usize] = seed as u32;
                 scratch.stack.push(next);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The AVX2 transpose writes what the portable copy writes, bit for bit, for every batch
+    /// length, with NaN and the extreme directions among the values.
+    #[test]
+    fn stored_contributions_do_not_depend_on_the_vector_extension() {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            let mut state = 0x2545_f491_4f6c_dd1du64;
+            let mut next = move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let specials = [f32::NAN, 127.0, -127.0, 127.00001, -0.0, 0.0];
+                match state % 16 {
+                    0..6 => specials[(state % 16) as usize],
+                    _ => (state >> 40) as f32 / (1u64 << 24) as f32 * 254.0 - 127.0,
+                }
+            };
+            let mut weighted = [[[0.0f32; BATCH]; 3]; 3];
+            let mut directions = [[[0.0f32; BATCH]; 3]; 3];
+            for x in weighted
+                .iter_mut()
+                .chain(&mut directions)
+                .flatten()
+                .flatten()
+            {
+                *x = next();
+            }
+            let bits = |records: &[[Contribution; 3]]| -> Vec<([u32; 3], [i8; 4])> {
+                let bits = |c: &Contribution| (c.weighted_s.map(f32::to_bits), c.t_direction);
+                records.iter().flatten().map(bits).collect()
+            };
+            for len in [1, 2, 3, 4, 5, 15, 16, 17, 31, 32, 33, 48, 63, 64] {
+                let mut portable = vec![[Contribution::ZERO; 3]; len];
+                let mut avx2 = vec![[Contribution::ZERO; 3]; len];
+                store_contributions_portable(&weighted, &directions, &mut portable);
+                // SAFETY: the CPU was just found to support AVX2.
+                unsafe { store_contributions_avx2(&weighted, &directions, &mut avx2) };
+                assert_eq!(bits(&portable), bits(&avx2), "batch of {len}");
             }
         }
     }
