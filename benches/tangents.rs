@@ -788,6 +788,32 @@ fn write_result(path: &Path, contents: &str) {
     }
 }
 
+/// Fixes glibc's thresholds so that every contender's freed blocks are reused by its next call.
+/// By default glibc raises its mapping and trimming thresholds to the largest block freed so
+/// far, so whether a call's buffers come from the heap or from fresh pages (faulted in and
+/// zeroed by the kernel, a tenth of a call or more) depends on what every earlier call
+/// allocated: one more 1 MiB buffer in one contender made the whole run fault ten times as
+/// often, slowing meshoptimizer's calls as well as ours, and two runs of one binary differed
+/// by a third. `TSPACE_BENCH_MALLOC=default` leaves the thresholds alone.
+fn keep_freed_memory_for_reuse() {
+    if std::env::var("TSPACE_BENCH_MALLOC").is_ok_and(|v| v == "default") {
+        println!("allocator: glibc's default thresholds (TSPACE_BENCH_MALLOC=default)");
+        return;
+    }
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only changes the allocator's thresholds; it is thread-safe.
+    unsafe {
+        // The largest mapping threshold glibc accepts on 64-bit: blocks up to 32 MiB come from
+        // the heaps (the 2M meshes' largest arrays are mapped afresh every call, for every
+        // contender alike), and a heap's free top is kept.
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
+    }
+    println!(
+        "allocator: freed blocks under 32 MiB kept for reuse (TSPACE_BENCH_MALLOC=default to not)"
+    );
+}
+
 fn main() {
     let config = Config::from_env_and_args();
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
@@ -810,6 +836,7 @@ fn main() {
         config.max_samples,
         if config.quick { " (quick)" } else { "" }
     );
+    keep_freed_memory_for_reuse();
     let started = Instant::now();
 
     let mut reports = Vec::new();
