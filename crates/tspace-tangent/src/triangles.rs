@@ -197,11 +197,7 @@ fn gather_four(
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    for (j, &v) in vertices.iter().enumerate() {
-        for (column, &x) in columns.iter_mut().zip(&vectors[v]) {
-            column[k + j] = x;
-        }
-    }
+    gather_four_portable(vectors, vertices, columns, k);
 }
 
 /// [`gather_four`] for texture coordinates.
@@ -229,8 +225,20 @@ fn gather_four_uvs(
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
+    gather_four_portable(uvs, vertices, columns, k);
+}
+
+/// [`gather_four`] and [`gather_four_uvs`] one float at a time, on other architectures.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn gather_four_portable<const N: usize>(
+    vectors: &[[f32; N]],
+    vertices: [usize; 4],
+    columns: &mut [[f32; BATCH]; N],
+    k: usize,
+) {
     for (j, &v) in vertices.iter().enumerate() {
-        for (column, &x) in columns.iter_mut().zip(&uvs[v]) {
+        for (column, &x) in columns.iter_mut().zip(&vectors[v]) {
             column[k + j] = x;
         }
     }
