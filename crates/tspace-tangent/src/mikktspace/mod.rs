@@ -661,8 +661,8 @@ impl Context<'_> {
         // arrays that size are set up in a few stores.
         let one_fan = match k {
             0 => false,
-            1..=4 => one_fan::<4>(ends),
-            5..=8 => one_fan::<8>(ends),
+            1..=4 => one_small_fan::<1>(ends),
+            5..=8 => one_small_fan::<2>(ends),
             9..=32 => one_fan::<32>(ends),
             _ => false,
         };
@@ -1143,11 +1143,82 @@ fn dot_i8(a: [i8; 4], b: [i8; 4]) -> i32 {
         .sum()
 }
 
+/// [`one_fan`] for vertices of at most `4 * BLOCKS` corners (1 or 2 blocks: most vertices of a
+/// mesh with many UV seams, DamagedHelmet's for one, have at most four, and one block is set up
+/// and compared in half the instructions, which made that mesh 4% faster), nearly every vertex
+/// of a mesh. Each edge is matched against a block of four with one vector comparison, and the
+/// corners' followers are kept as four-bit numbers in one word, so the walk through them is a
+/// shift and a mask a step (from an array, each step waited on a load it had just stored).
+#[inline(always)]
+fn one_small_fan<const BLOCKS: usize>(ends: &[[u32; 2]]) -> bool {
+    let k = ends.len();
+    debug_assert!((1..=4 * BLOCKS).contains(&k));
+    // Unused places hold `NONE`, which no class equals.
+    let mut arriving = [[NONE; 4]; BLOCKS];
+    for (j, &[arrives, _]) in ends.iter().enumerate().take(4 * BLOCKS) {
+        arriving[j / 4][j % 4] = arrives;
+    }
+    // `successors`: four bits a corner, the corner whose arriving edge pairs with the edge
+    // leaving it, or `NO_SUCCESSOR`; `paired`: the corners that follow another.
+    const NO_SUCCESSOR: u32 = 15;
+    let (mut successors, mut paired, mut pairs) = (0u32, 0u32, 0u32);
+    for (j, &[_, leaves]) in ends.iter().enumerate().take(4 * BLOCKS) {
+        let mut matches = 0u32;
+        for (b, block) in arriving.iter().enumerate() {
+            matches |= equal_lanes(block, leaves) << (4 * b);
+        }
+        // More than one candidate on either side is the ambiguous case the general path
+        // resolves.
+        if matches & matches.wrapping_sub(1) != 0 || matches & paired != 0 {
+            return false;
+        }
+        paired |= matches;
+        pairs += u32::from(matches != 0);
+        successors |= matches.trailing_zeros().min(NO_SUCCESSOR) << (4 * j);
+    }
+    // As in `one_fan`: a single cycle through corner 0, or a single path from the corner that
+    // follows none.
+    let start = if pairs as usize == k {
+        0
+    } else if pairs as usize + 1 == k {
+        (!paired).trailing_zeros()
+    } else {
+        return false;
+    };
+    let (mut at, mut visited) = (start, 1);
+    loop {
+        let next = (successors >> (4 * at)) & 15;
+        if next == NO_SUCCESSOR || next == start || visited > k {
+            break;
+        }
+        (at, visited) = (next, visited + 1);
+    }
+    visited == k
+}
+
+/// Bit `i` set where `block[i] == x`: one comparison of four lanes (SSE2, part of the x86-64
+/// baseline).
+#[inline(always)]
+fn equal_lanes(block: &[u32; 4], x: u32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            _mm_castsi128_ps, _mm_cmpeq_epi32, _mm_loadu_si128, _mm_movemask_ps, _mm_set1_epi32,
+        };
+        // SAFETY: SSE2 is part of the x86-64 baseline; the load reads the 16 bytes of `block`.
+        unsafe {
+            let lanes = _mm_loadu_si128(block.as_ptr().cast());
+            let equal = _mm_cmpeq_epi32(lanes, _mm_set1_epi32(x as i32));
+            _mm_movemask_ps(_mm_castsi128_ps(equal)) as u32
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    matches_in_block(block, x)
+}
+
 /// Whether the edges around a vertex pair unambiguously (no other vertex is reached twice the
 /// same way) and connect all its corners, given each corner's [`Run::ends`]; at most `MAX`
-/// corners (4, 8 or 32: most vertices of a mesh with many UV seams, DamagedHelmet's for one,
-/// have at most four, and arrays of four are set up and compared in half the instructions,
-/// which made that mesh 4% faster).
+/// corners. [`one_small_fan`] decides the same for vertices of up to eight.
 #[inline(always)]
 fn one_fan<const MAX: usize>(ends: &[[u32; 2]]) -> bool {
     let k = ends.len();
@@ -1269,6 +1340,55 @@ fn label_components(corners: &[u32], flags: &[u8], scratch: &mut Scratch) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The small fans' vector matching and word of followers decide what the general version
+    /// does, over random vertices whose edges' other ends come from a few classes (so that
+    /// cycles, paths, splits and ambiguous pairs all occur), and over a closed fan and an open
+    /// one of every size.
+    #[test]
+    fn small_fans_are_decided_as_in_general() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move |below: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % below) as u32
+        };
+        let decide = |ends: &[[u32; 2]]| match ends.len() {
+            1..=4 => one_small_fan::<1>(ends),
+            _ => one_small_fan::<2>(ends),
+        };
+        let mut connected = 0;
+        for _ in 0..200_000 {
+            let k = 1 + next(8) as usize;
+            let classes = 1 + u64::from(next(9));
+            let ends: Vec<[u32; 2]> = (0..k).map(|_| [next(classes), next(classes)]).collect();
+            let expected = one_fan::<32>(&ends);
+            assert_eq!(decide(&ends), expected, "{ends:?}");
+            connected += usize::from(expected);
+        }
+        assert!(
+            connected > 1_000,
+            "too few connected fans drawn: {connected}"
+        );
+        for k in 1..=8u32 {
+            // Corner j runs from class j to class j + 1: a path, closed into a cycle by the
+            // last corner returning to class 0, and broken by a corner that goes elsewhere.
+            let open: Vec<[u32; 2]> = (0..k).map(|j| [j, j + 1]).collect();
+            let mut closed = open.clone();
+            closed[k as usize - 1][1] = 0;
+            let mut broken = open.clone();
+            broken[0][0] = 100;
+            broken[k as usize - 1][1] = 200;
+            if k > 2 {
+                broken[k as usize / 2] = [300, 400];
+            }
+            for (ends, expected) in [(&open, true), (&closed, true), (&broken, k <= 2)] {
+                assert_eq!(decide(ends), expected, "{ends:?}");
+                assert_eq!(one_fan::<32>(ends), expected, "{ends:?}");
+            }
+        }
+    }
 
     /// The AVX2 transpose writes what the portable copy writes, bit for bit, for every batch
     /// length, with NaN and the extreme directions among the values.
