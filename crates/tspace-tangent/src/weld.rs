@@ -293,6 +293,15 @@ fn number_classes(first_of_vertex: Vec<u32>, parallel: bool) -> Weld {
             .map(count_firsts)
             .collect()
     };
+    if counts.iter().map(|&n| n as usize).sum::<usize>() == vertex_count {
+        // Every vertex is its own first, as in nearly every indexed mesh: the classes are the
+        // vertices, numbered as they are.
+        debug_assert!(first_of_vertex.iter().zip(0..).all(|(&f, v)| f == v));
+        return Weld {
+            class_of_vertex: first_of_vertex,
+            class_count: vertex_count,
+        };
+    }
     let mut class_count = 0u32;
     let block_starts: Vec<u32> = counts
         .iter()
