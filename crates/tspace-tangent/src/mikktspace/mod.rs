@@ -611,7 +611,7 @@ impl Context<'_> {
                         class,
                         any & ORIENT_PRESERVING,
                         &run.ends[slots.clone()],
-                        &run.contributions[slots.clone()],
+                        &run.contributions[slots.start..],
                         &run.vertices[slots],
                         degenerate,
                         &mut piece.repairs,
@@ -642,14 +642,16 @@ impl Context<'_> {
     /// every edge around it pairs unambiguously (no other vertex is reached twice the same way),
     /// the pairs connect all its corners into one group, and no two frames can be opposite.
     /// Then the general path would find one group summed in ascending order, which is what is
-    /// computed here. Returns false, having written nothing, for any other vertex.
+    /// computed here. Returns false, having written nothing, for any other vertex. `records`
+    /// starts with the vertex's corners' records, and holds anything after them up to a
+    /// multiple of four (see [`sum_of_one_group`]).
     #[allow(clippy::too_many_arguments)]
     fn try_one_group<P: FnMut(usize, [f32; 4])>(
         &self,
         class: usize,
         orientation: u8,
         ends: &[[u32; 2]],
-        contributions: &[Contribution],
+        records: &[Contribution],
         vertices: &[u32],
         degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
@@ -670,7 +672,7 @@ impl Context<'_> {
             return false;
         }
 
-        let Some(sum) = sum_of_one_group(contributions) else {
+        let Some(sum) = sum_of_one_group(records, k) else {
             return false;
         };
         let raw = encode(normalize_or_zero(sum), orientation != 0);
@@ -1056,7 +1058,8 @@ impl Run {
         let len = corners.len();
         // Only grown, never cleared: every place up to `len` is written below.
         if self.flags.len() < len {
-            self.contributions.resize(len, Contribution::ZERO);
+            // Three places more, for the last vertex's last four (see `sum_of_one_group`).
+            self.contributions.resize(len + 3, Contribution::ZERO);
             self.ends.resize(len, [0; 2]);
             self.flags.resize(len, 0);
             self.vertices.resize(len, 0);
@@ -1114,13 +1117,15 @@ impl Run {
 /// frames can be opposite (see `evaluate_group`), which they cannot be if every `s` lies within
 /// ~89.4° of the first (a weighted `s` has its direction, or is zero and fails) and every `t`
 /// within ~88° (see [`T_DIRECTIONS_CLOSE`]). The sum is made whether or not the test passes (it
-/// nearly always does). At least one corner.
+/// nearly always does). The corners' records are `records[..k]`, at least one; `records` goes
+/// on to a multiple of four with places whatever they hold, so that the last four are loaded
+/// whole (then left out of the verdict) instead of being copied out first.
 #[inline(always)]
-fn sum_of_one_group(contributions: &[Contribution]) -> Option<[f32; 3]> {
+fn sum_of_one_group(records: &[Contribution], k: usize) -> Option<[f32; 3]> {
     #[cfg(target_arch = "x86_64")]
-    return sum_of_one_group_sse2(contributions);
+    return sum_of_one_group_sse2(records, k);
     #[cfg(not(target_arch = "x86_64"))]
-    return sum_of_one_group_portable(contributions);
+    return sum_of_one_group_portable(&records[..k]);
 }
 
 #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
@@ -1149,15 +1154,12 @@ fn sum_of_one_group_portable(contributions: &[Contribution]) -> Option<[f32; 3]>
 /// same order too. Scalar, the test was a quarter of the per-vertex pass.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn sum_of_one_group_sse2(contributions: &[Contribution]) -> Option<[f32; 3]> {
+fn sum_of_one_group_sse2(records: &[Contribution], k: usize) -> Option<[f32; 3]> {
     use std::arch::x86_64::*;
-    let first = contributions[0];
+    let groups = &records[..k.next_multiple_of(4)];
+    let first = groups[0];
     let (rs, rt) = (first.weighted_s, first.t_direction);
     let rs2 = dot(rs, rs);
-    let (groups, rest) = contributions.split_at(contributions.len() / 4 * 4);
-    // The last, partial group is filled up with the first record, which is tested anyway.
-    let mut last = [first; 4];
-    last[..rest.len()].copy_from_slice(rest);
     // SAFETY: SSE2 is part of the x86-64 baseline. Every load reads one 16-byte record
     // (`Contribution` is `repr(C)`: three floats and four bytes).
     unsafe {
@@ -1172,8 +1174,18 @@ fn sum_of_one_group_sse2(contributions: &[Contribution]) -> Option<[f32; 3]> {
         // add those slowly.
         let xyz = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
         let mut sum = _mm_setzero_ps();
-        let mut passes = -1i32;
-        let mut test = |four: [__m128; 4]| {
+        for record in &groups[..k] {
+            sum = _mm_add_ps(sum, _mm_and_ps(load(record), xyz));
+        }
+        // A bit for every corner that fails, and for none of the places after the corners.
+        let mut fails = 0i32;
+        for (g, four) in groups.chunks_exact(4).enumerate() {
+            let four = [
+                load(&four[0]),
+                load(&four[1]),
+                load(&four[2]),
+                load(&four[3]),
+            ];
             // Columns x, y, z and the directions' words.
             let low01 = _mm_unpacklo_ps(four[0], four[1]);
             let low23 = _mm_unpacklo_ps(four[2], four[3]);
@@ -1209,34 +1221,12 @@ fn sum_of_one_group_sse2(contributions: &[Contribution]) -> Option<[f32; 3]> {
                 _mm_castps_si128(_mm_shuffle_ps::<0b11_01_11_01>(low, high)),
             );
             let t_close = _mm_castsi128_ps(_mm_cmpgt_epi32(t_dot, close));
-            passes &= _mm_movemask_ps(_mm_and_ps(s_close, t_close));
-        };
-        for group in groups.chunks_exact(4) {
-            let four = [
-                load(&group[0]),
-                load(&group[1]),
-                load(&group[2]),
-                load(&group[3]),
-            ];
-            for &record in &four {
-                sum = _mm_add_ps(sum, _mm_and_ps(record, xyz));
-            }
-            test(four);
-        }
-        if !rest.is_empty() {
-            for record in rest {
-                sum = _mm_add_ps(sum, _mm_and_ps(load(record), xyz));
-            }
-            test([
-                load(&last[0]),
-                load(&last[1]),
-                load(&last[2]),
-                load(&last[3]),
-            ]);
+            let corners = (k - 4 * g).min(4);
+            fails |= !_mm_movemask_ps(_mm_and_ps(s_close, t_close)) & ((1 << corners) - 1);
         }
         let mut lanes = [0.0f32; 4];
         _mm_storeu_ps(lanes.as_mut_ptr(), sum);
-        (passes & 0xf == 0xf).then_some([lanes[0], lanes[1], lanes[2]])
+        (fails == 0).then_some([lanes[0], lanes[1], lanes[2]])
     }
 }
 
@@ -1498,7 +1488,10 @@ mod tests {
             let records: Vec<Contribution> = (0..k).map(|_| record(base, base_t)).collect();
             let bits = |sum: Option<[f32; 3]>| sum.map(|s| s.map(f32::to_bits));
             let expected = sum_of_one_group_portable(&records);
-            assert_eq!(bits(sum_of_one_group_sse2(&records)), bits(expected));
+            // The places after the corners hold anything, here records that would fail.
+            let mut padded = records.clone();
+            padded.extend((0..3).map(|_| record(base.map(|x| -x), base_t)));
+            assert_eq!(bits(sum_of_one_group_sse2(&padded, k)), bits(expected));
             if expected.is_some() {
                 passed += 1;
             } else {
