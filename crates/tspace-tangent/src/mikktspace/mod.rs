@@ -1077,38 +1077,30 @@ impl Run {
             }
         }
         // The records as one array of corners (a triangle's three are contiguous), so that a
-        // corner's record and a prefetch of one ahead need no division by three.
+        // corner's record and a prefetch of one ahead need no division by three. Two loops, the
+        // records first: in one, the pointers it needed did not fit in registers.
         let records = context.contributions.as_flattened();
         let classes = context.corner_class;
-        let copy = |corner: u32, record: &mut Contribution, end: &mut [u32; 2], flag: &mut u8| {
+        // All but the last PREFETCH_AHEAD corners ask for the record of the corner that far
+        // ahead, and for its classes, which the second loop reads; the rest are on their way.
+        let ahead = corners.get(PREFETCH_AHEAD..).unwrap_or_default();
+        for ((&corner, &later), record) in corners.iter().zip(ahead).zip(contributions.iter_mut()) {
+            prefetch(&records[later as usize]);
+            prefetch(&classes[later as usize]);
+            *record = records[corner as usize];
+        }
+        for (&corner, record) in corners.iter().zip(contributions).skip(ahead.len()) {
+            *record = records[corner as usize];
+        }
+        for ((&corner, end), flag) in corners.iter().zip(ends).zip(corner_flags) {
             let corner = corner as usize;
             let triangle = corner / 3;
             let first = 3 * triangle;
             let i = corner - first;
-            *record = records[corner];
             // The other corners' places in the triangle, from two-bit tables: PREV and NEXT.
             let (previous, next) = ((0b01_00_10 >> (2 * i)) & 3, (0b00_10_01 >> (2 * i)) & 3);
             *end = [classes[first + previous], classes[first + next]];
             *flag = flags[triangle];
-        };
-        let outputs = contributions
-            .iter_mut()
-            .zip(ends.iter_mut())
-            .zip(corner_flags.iter_mut());
-        // All but the last PREFETCH_AHEAD corners ask for the record of the corner that far
-        // ahead, and for its classes; the rest are already on their way.
-        let ahead = corners.get(PREFETCH_AHEAD..).unwrap_or_default();
-        let mut outputs = outputs.enumerate();
-        // (The shorter iterator first: a zip that ends takes nothing more from its second.)
-        for ((&corner, &later), (_, ((record, end), flag))) in
-            corners.iter().zip(ahead).zip(outputs.by_ref())
-        {
-            prefetch(&records[later as usize]);
-            prefetch(&classes[later as usize]);
-            copy(corner, record, end, flag);
-        }
-        for (at, ((record, end), flag)) in outputs {
-            copy(corners[at], record, end, flag);
         }
     }
 }
