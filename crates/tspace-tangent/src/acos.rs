@@ -93,6 +93,14 @@ pub(crate) fn acos_slice(x: &[f32], out: &mut [f32]) {
     for (o, &x) in out.iter_mut().zip(x) {
         *o = acos_if_certain(x);
     }
+    // Nearly always none: found in one vector pass (a fold, where `any` would stop early and
+    // stay scalar) before a scalar one looks for them.
+    if !out
+        .iter()
+        .fold(false, |uncertain, o| uncertain | o.is_nan())
+    {
+        return;
+    }
     for (o, &x) in out.iter_mut().zip(x) {
         if o.is_nan() {
             *o = (x as f64).acos() as f32;
