@@ -217,7 +217,23 @@ impl<'a> SharedSplit<'a> {
             }
             mixed
         };
-        let runs: Vec<Tally> = if self.parallel {
+        // Where every tangent has the same handedness, as in a mesh without mirrored texture
+        // coordinates, no triangle can mix them: one pass over the vertices spares one over
+        // the corners reading a tangent for each.
+        // (Blocks, each a vector pass, so that a mesh that has both stops looking early.)
+        let mut seen = (false, false);
+        for block in vertex_tangents.chunks(1024) {
+            seen = block.iter().fold(seen, |(positive, other), t| {
+                let is_positive = t[3] > 0.0;
+                (positive | is_positive, other | !is_positive)
+            });
+            if seen.0 && seen.1 {
+                break;
+            }
+        }
+        let runs: Vec<Tally> = if !(seen.0 && seen.1) {
+            Vec::new()
+        } else if self.parallel {
             indices
                 .par_chunks(3 * RUN)
                 .enumerate()
