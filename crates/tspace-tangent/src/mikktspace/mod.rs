@@ -921,18 +921,9 @@ impl Context<'_> {
         let corners = self.table.of(class);
         eval.raw.clear();
         eval.raw.resize(corners.len(), UNASSIGNED);
+        // The exact members are computed again only for a vertex with a group that needs them
+        // (see `one_subgroup_from_records`).
         eval.members.clear();
-        for &corner in corners {
-            let any = flags[corner as usize / 3] & GROUP_WITH_ANY != 0;
-            eval.members.push(if any {
-                Member {
-                    any,
-                    ..Member::default()
-                }
-            } else {
-                self.exact_member(corner as usize)
-            });
-        }
 
         // Corners in group order: by label, then ascending (which is ascending triangle order,
         // the order the reference sums in).
@@ -961,9 +952,52 @@ impl Context<'_> {
             eval.group.extend_from_slice(&eval.order[start..end]);
             let first = corners[eval.group[0] as usize] as usize;
             let orientation_preserving = flags[first / 3] & ORIENT_PRESERVING != 0;
-            self.evaluate_group(corners, orientation_preserving, eval);
+            if let Some(tangent) = self.one_subgroup_from_records(corners, flags, eval) {
+                for &j in &eval.group {
+                    eval.raw[j as usize] = encode(tangent, orientation_preserving);
+                }
+            } else {
+                if eval.members.is_empty() {
+                    for &corner in corners {
+                        let any = flags[corner as usize / 3] & GROUP_WITH_ANY != 0;
+                        eval.members.push(if any {
+                            Member {
+                                any,
+                                ..Member::default()
+                            }
+                        } else {
+                            self.exact_member(corner as usize)
+                        });
+                    }
+                }
+                self.evaluate_group(corners, orientation_preserving, eval);
+            }
             start = end;
         }
+    }
+
+    /// The tangent of `eval.group` from the triangle pass's records, when they show it is one
+    /// sub-group, as the one-group shortcut does (see `sum_of_one_group`): then the reference's
+    /// sub-groups are each the whole group, and the result is the sum of its weighted frames in
+    /// group order, which are exactly the records' (`scale(s, angle)`, the same products).
+    /// `None` for a group with a "group with anything" corner, or one the test cannot clear:
+    /// those take the exact members.
+    fn one_subgroup_from_records(
+        &self,
+        corners: &[u32],
+        flags: &[u8],
+        eval: &mut EvalScratch,
+    ) -> Option<[f32; 3]> {
+        eval.records.clear();
+        for &j in &eval.group {
+            let corner = corners[j as usize] as usize;
+            if flags[corner / 3] & GROUP_WITH_ANY != 0 {
+                return None;
+            }
+            eval.records
+                .push(self.contributions[corner / 3][corner % 3]);
+        }
+        sum_of_one_group_portable(&eval.records).map(normalize_or_zero)
     }
 
     fn evaluate_group(
@@ -1120,7 +1154,6 @@ fn sum_of_one_group(records: &[Contribution], k: usize) -> Option<[f32; 3]> {
     return sum_of_one_group_portable(&records[..k]);
 }
 
-#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 #[inline(always)]
 fn sum_of_one_group_portable(contributions: &[Contribution]) -> Option<[f32; 3]> {
     let (rs, rt) = (contributions[0].weighted_s, contributions[0].t_direction);
@@ -1383,6 +1416,8 @@ const PREV: [usize; 3] = [2, 0, 1];
 #[derive(Default)]
 struct EvalScratch {
     members: Vec<Member>,
+    /// A group's records, in group order.
+    records: Vec<Contribution>,
     /// The result of every corner around the vertex, before validation.
     raw: Vec<[f32; 4]>,
     order: Vec<u32>,
