@@ -1469,19 +1469,23 @@ fn label_components(corners: &[u32], flags: &[u8], scratch: &mut Scratch) {
 mod tests {
     use super::*;
 
+    /// A xorshift generator: the tests' random inputs, the same on every run.
+    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        }
+    }
+
     /// The vector test of one sub-group gives the scalar one's verdict and sum, bit for bit,
     /// for vertices of every size up to 12 corners, whose records are drawn from near-parallel
     /// frames (passing), a few opposite or crossed ones, zero, NaN, tiny and huge values.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn one_group_test_does_not_depend_on_the_vector_extension() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
         let mut record = |base: [f32; 3], base_t: [i8; 4]| {
             let r = next();
             let jitter = |shift: u32| ((r >> shift) & 0xff) as f32 / 2550.0;
@@ -1537,13 +1541,8 @@ mod tests {
     /// one of every size.
     #[test]
     fn small_fans_are_decided_as_in_general() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move |below: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state % below) as u32
-        };
+        let mut random = xorshift(0x9e37_79b9_7f4a_7c15);
+        let mut next = move |below: u64| (random() % below) as u32;
         let decide = |ends: &[[u32; 2]]| match ends.len() {
             1..=4 => one_small_fan::<1>(ends),
             _ => one_small_fan::<2>(ends),
@@ -1586,11 +1585,9 @@ mod tests {
     fn stored_contributions_do_not_depend_on_the_vector_extension() {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
-            let mut state = 0x2545_f491_4f6c_dd1du64;
+            let mut random = xorshift(0x2545_f491_4f6c_dd1d);
             let mut next = move || {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
+                let state = random();
                 let specials = [f32::NAN, 127.0, -127.0, 127.00001, -0.0, 0.0];
                 match state % 16 {
                     0..6 => specials[(state % 16) as usize],
