@@ -210,7 +210,7 @@ struct Contribution {
     /// The triangle's dP/du projected into the normal's plane and normalized, times the
     /// corner's angle in that plane: the term the reference adds for this corner.
     weighted_s: [f32; 3],
-    /// The direction of dP/dv projected, as `trunc(127 x)` of its unit vector (zero where it
+    /// The direction of dP/dv projected, as the bytes of [`scaled_to_bytes`] (zero where it
     /// has none): enough to tell that no two frames around a vertex can be opposite. The fourth
     /// place is always 0: four bytes are written (and compared) as one word.
     t_direction: [i8; 4],
@@ -234,7 +234,7 @@ struct FrameColumns {
     /// `normal[corner][axis][k]`, and so on: per corner of the batch's triangle `k`.
     normal: [[[f32; BATCH]; 3]; 3],
     corner_s: [[[f32; BATCH]; 3]; 3],
-    /// `127 t / |t|` (see [`Contribution::t_direction`]).
+    /// `t` scaled for bytes (see [`Contribution::t_direction`]).
     corner_t: [[[f32; BATCH]; 3]; 3],
     /// Cosine and angle of corner `corner` of triangle `k` at `corner * BATCH + k`.
     cos: [f32; 3 * BATCH],
@@ -327,7 +327,7 @@ impl FrameColumns {
                 t: [tx[k], ty[k], tz[k]],
             };
             let (s, t, c) = corner_arithmetic(&p, CORNER, &frame, [nx[k], ny[k], nz[k]]);
-            let t = scale(normalize_or_zero_branchless(t), 127.0);
+            let t = scaled_to_bytes(t);
             cos[k] = c;
             (csx[k], csy[k], csz[k]) = (s[0], s[1], s[2]);
             (ctx[k], cty[k], ctz[k]) = (t[0], t[1], t[2]);
@@ -401,8 +401,8 @@ unsafe fn store_contributions_avx2(
             for block in (0..len).step_by(8) {
                 let load = |column: &[f32; BATCH]| _mm256_loadu_ps(column.as_ptr().add(block));
                 let (x, y, z) = (load(wx), load(wy), load(wz));
-                // The direction's components truncated to bytes (|127 t| <= 127 and so in
-                // range; NaN gives 0x80000000, whose low byte is 0, as `NaN as i8` is) in one
+                // The direction's components truncated to bytes (all below 128 in magnitude
+                // and so in range; NaN gives 0x80000000, whose low byte is 0, as `NaN as i8` is) in one
                 // word.
                 let byte = |column: &[f32; BATCH]| {
                     _mm256_and_si256(_mm256_cvttps_epi32(load(column)), _mm256_set1_epi32(0xff))
@@ -468,6 +468,26 @@ fn corner_arithmetic(
     let v1 = normalize_or_zero_branchless(reject(sub(p[NEXT[corner]], here), normal));
     let v2 = normalize_or_zero_branchless(reject(sub(p[PREV[corner]], here), normal));
     (s, t, dot(v1, v2).clamp(-1.0, 1.0))
+}
+
+/// `t` times the power of two that puts its largest component's magnitude in [64, 128), so that
+/// truncated to bytes it keeps its direction (see [`T_DIRECTIONS_CLOSE`]); zero where the largest
+/// component is below 2^-121 or not finite. Only the one-group test reads the result, so it
+/// need not be `t` normalized: an exponent taken from the bits spares the square root and the
+/// division a normalization costs every corner. Branch-free, so that the corner loop
+/// vectorizes.
+#[inline(always)]
+fn scaled_to_bytes(t: [f32; 3]) -> [f32; 3] {
+    // The largest magnitude's biased exponent (as integers, NaN ranks above infinity).
+    let exponent = t
+        .map(|x| x.to_bits() & 0x7fff_ffff)
+        .into_iter()
+        .fold(0, u32::max)
+        >> 23;
+    let usable = (6..=254).contains(&exponent);
+    // 2^(133 - e), whose biased exponent is 260 - e: from [2^(e-127), 2^(e-126)) into [64, 128).
+    let factor = f32::from_bits(260u32.wrapping_sub(exponent) << 23);
+    t.map(|x| if usable { x * factor } else { 0.0 })
 }
 
 /// The reference's per-triangle set-up, in its operation order so results are bit-identical.
@@ -1142,7 +1162,7 @@ impl Run {
 /// The sum of a vertex's weighted `s`, in order, if its corners make one sub-group: unless two
 /// frames can be opposite (see `evaluate_group`), which they cannot be if every `s` lies within
 /// ~89.4° of the first (a weighted `s` has its direction, or is zero and fails) and every `t`
-/// within ~88° (see [`T_DIRECTIONS_CLOSE`]). The sum is made whether or not the test passes (it
+/// within ~89.4° (see [`T_DIRECTIONS_CLOSE`]). The sum is made whether or not the test passes (it
 /// nearly always does). The corners' records are `records[..k]`, at least one; `records` goes
 /// on to a multiple of four with places whatever they hold, so that the last four are loaded
 /// whole (then left out of the verdict) instead of being copied out first.
@@ -1255,11 +1275,12 @@ fn sum_of_one_group_sse2(records: &[Contribution], k: usize) -> Option<[f32; 3]>
     }
 }
 
-/// The least dot product of two [`Contribution::t_direction`]s whose unit vectors are sure to
-/// make a cosine above 0.01. Truncation moves each component less than 1, so the dot product of
-/// the scaled vectors less than `2 · 127 · √3 + 3 < 444` away from `127² cos`; above this bound
-/// `cos > (1024 − 444) / 127² ≈ 0.036`.
-const T_DIRECTIONS_CLOSE: i32 = 1024;
+/// The least dot product of two [`Contribution::t_direction`]s whose vectors are sure to make a
+/// cosine above 0.01. Before truncation each vector `A` had its largest component in [64, 128),
+/// so `64 <= |A| < 128 √3 < 221.8`. Truncation moves each component less than 1, so the bytes'
+/// dot product lies less than `√3 (|A| + |B|) + 3 < 772` from `A · B`; above this bound
+/// `A · B > 508`, and `cos = A · B / (|A| |B|) > 508 / 221.8² ≈ 0.0103`.
+const T_DIRECTIONS_CLOSE: i32 = 1280;
 
 #[inline(always)]
 fn dot_i8(a: [i8; 4], b: [i8; 4]) -> i32 {
@@ -1477,6 +1498,52 @@ mod tests {
             state ^= state << 17;
             state
         }
+    }
+
+    /// `scaled_to_bytes` puts the largest component in [64, 128) and keeps the direction, or
+    /// gives zero; and two vectors whose bytes pass `T_DIRECTIONS_CLOSE` make a cosine above
+    /// 0.01, over pairs drawn near the bound from every range of magnitudes.
+    #[test]
+    fn byte_directions_that_pass_are_within_the_bound() {
+        let mut random = xorshift(0x5851_f42d_4c95_7f2d);
+        let mut unit = move || (random() >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0;
+        let bytes = |t: [f32; 3]| {
+            let b = scaled_to_bytes(t).map(|x| x as i8);
+            [b[0], b[1], b[2], 0]
+        };
+        for t in [
+            [0.0; 3],
+            [1e-38, 0.0, 0.0],
+            [f32::NAN, 1.0, 0.0],
+            [f32::INFINITY, 0.0, 0.0],
+        ] {
+            assert_eq!(scaled_to_bytes(t), [0.0; 3], "{t:?}");
+        }
+        let (mut passed, mut near) = (0, 0);
+        for round in 0..400_000 {
+            let magnitude = 2f32.powi((round % 60) - 30);
+            let a = [unit(), unit(), unit()].map(|x| x * magnitude);
+            // `b` a random turn of `a` by up to about 100 degrees, at another magnitude.
+            let turn = [unit(), unit(), unit()].map(|x| x * magnitude * 1.2);
+            let b = [0, 1, 2].map(|i| (a[i] + turn[i]) * 2f32.powi(round % 7 - 3));
+            let largest = scaled_to_bytes(a).iter().fold(0f32, |m, x| m.max(x.abs()));
+            if a.iter().any(|&x| x != 0.0) {
+                assert!((64.0..128.0).contains(&largest), "{a:?} -> {largest}");
+            }
+            let [a64, b64] = [a, b].map(|v| v.map(f64::from));
+            let dot = a64.iter().zip(&b64).map(|(x, y)| x * y).sum::<f64>();
+            let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let cos = dot / (norm(a64) * norm(b64));
+            if dot_i8(bytes(a), bytes(b)) > T_DIRECTIONS_CLOSE {
+                assert!(cos > 0.01, "{a:?} {b:?}: cos {cos}");
+                passed += 1;
+                near += usize::from(cos < 0.3);
+            }
+        }
+        assert!(
+            passed > 100_000 && near > 100,
+            "{passed} passed, {near} of them near"
+        );
     }
 
     /// The vector test of one sub-group gives the scalar one's verdict and sum, bit for bit,
