@@ -1151,9 +1151,7 @@ impl Run {
             let triangle = corner / 3;
             let first = 3 * triangle;
             let i = corner - first;
-            // The other corners' places in the triangle, from two-bit tables: PREV and NEXT.
-            let (previous, next) = ((0b01_00_10 >> (2 * i)) & 3, (0b00_10_01 >> (2 * i)) & 3);
-            *end = [classes[first + previous], classes[first + next]];
+            *end = [classes[first + PREV[i]], classes[first + NEXT[i]]];
             *flag = flags[triangle];
         }
     }
