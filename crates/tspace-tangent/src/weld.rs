@@ -133,7 +133,12 @@ pub(crate) fn weld_vertices(key: &Key<'_>, parallel: bool) -> Weld {
 
 /// [`weld_vertices`], told whether most vertices are expected to repeat.
 fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
-    if one_table_buckets(key.positions.len()) <= ONE_TABLE_MAX_BUCKETS {
+    let most_buckets = if parallel {
+        ONE_TABLE_MAX_BUCKETS
+    } else {
+        ONE_THREAD_MAX_BUCKETS
+    };
+    if one_table_buckets(key.positions.len()) <= most_buckets {
         return if mostly_repeated {
             weld_in_one_table::<FirstKeys>(key)
         } else {
@@ -144,10 +149,15 @@ fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
 }
 
 /// Up to this many slots (1 MiB with their tags), one table stays in a core's L2 or nearby L3
-/// cache and beats the shards' extra passes, even on two threads (a 70k-vertex mesh welds about 7% faster than in shards;
-/// a 100k-vertex one, whose table would be twice the size, about 15% slower). Beyond it, the
-/// table is split into shards (see [`weld_in_shards`]).
+/// cache and beats the shards' extra passes, even on two threads (a 70k-vertex mesh welds about
+/// 7% faster than in shards; a 100k-vertex one, whose table would be twice the size, about 15%
+/// slower). Beyond it, the table is split into shards (see [`weld_in_shards`]).
 const ONE_TABLE_MAX_BUCKETS: usize = 1 << 17;
+
+/// The same on one thread, where the shards' passes are not shared out: one table is faster up
+/// to a table of 4 MiB, past a core's L2 cache (a 100k-vertex mesh welds 13% faster than in
+/// shards, a 250k-vertex one 15–30%; a million vertices, a 16 MiB table, about as fast).
+const ONE_THREAD_MAX_BUCKETS: usize = 1 << 19;
 
 /// The number of slots of [`weld_in_one_table`]'s table: a power of two, at least 1.5 per vertex.
 fn one_table_buckets(vertex_count: usize) -> usize {
@@ -420,7 +430,7 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
     // that class's vertex from wherever it lies in the mesh (a cache miss in most collisions).
     let mut table = vec![(NONE, 0u32); buckets];
     let mut firsts = F::default();
-    let mut class_of_vertex = vec![NONE; vertex_count];
+    let mut class_of_vertex = Vec::with_capacity(vertex_count);
     let mut class_count = 0u32;
     // Hash a block of vertices first and prefetch their buckets: the misses overlap, where the
     // insertion loop below would wait for one at a time. (A prefetch rather than a load, which
@@ -442,28 +452,26 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
                 firsts.prefetch(class);
             }
         }
-        for (v, &(slot, tag)) in block.zip(&home) {
-            // A vertex holding NaN gets a class of its own but no slot.
-            let mut slot = if key.self_equal(v) { slot } else { NO_SLOT };
+        for (v, &(mut slot, tag)) in block.zip(&home) {
             let mut probe = 0;
-            while slot != NO_SLOT {
+            class_of_vertex.push(loop {
                 let (class, held_tag) = table[slot];
                 if class == NONE {
-                    table[slot] = (class_count, tag);
-                    break;
+                    // A new class. A vertex holding NaN, which no class can equal (and which
+                    // reaches here for that reason), gets one too but no slot.
+                    if key.self_equal(v) {
+                        table[slot] = (class_count, tag);
+                    }
+                    firsts.add(key, v);
+                    class_count += 1;
+                    break class_count - 1;
                 }
                 if held_tag == tag && firsts.same(key, class, v) {
-                    class_of_vertex[v] = class;
-                    break;
+                    break class;
                 }
                 probe += 1;
                 slot = (slot + probe) & mask;
-            }
-            if class_of_vertex[v] == NONE {
-                class_of_vertex[v] = class_count;
-                firsts.add(key, v);
-                class_count += 1;
-            }
+            });
         }
     }
     Weld {
@@ -471,9 +479,6 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
         class_count: class_count as usize,
     }
 }
-
-/// In place of a slot, for a vertex that never enters the table.
-const NO_SLOT: usize = usize::MAX;
 
 /// Welds the vertices MikkTSpace would weld: equal position, normal and texture coordinate.
 pub(crate) fn weld_mesh(mesh: &Mesh<'_>, parallel: bool) -> Weld {
