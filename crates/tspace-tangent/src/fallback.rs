@@ -85,9 +85,11 @@ pub(crate) struct NormalCheck {
 }
 
 /// The test for a vertex with normal `n`, made once per vertex where [`repair_corner`] would redo
-/// it per corner: against `n` itself when it is nearly unit; else against `n` normalized in
-/// f32, with a tolerance 10% tighter than [`repair_corner`]'s, which covers the difference from
-/// its f64 normalization (under 1e-6) so that a pass here is a pass there (a tangent failing
+/// it per corner: against `n` itself when it is nearly unit; else against `n` as it is, with the
+/// tolerance scaled by its length (`|t·n| <= tol |n|` is `|t·n/|n|| <= tol`, without the
+/// division that normalizing takes, which was most of this test's time on meshes whose normals
+/// are stored a little off unit length) and made 10% tighter than [`repair_corner`]'s, which
+/// covers the f32 rounding (under 1e-6) so that a pass here is a pass there (a tangent failing
 /// here only for that margin is checked there again and left alone). `None` when `n` has no
 /// direction: then each corner needs the full check.
 #[inline]
@@ -102,8 +104,8 @@ pub(crate) fn check_normal(n: [f32; 3]) -> Option<NormalCheck> {
     // Squares far from f32's limits: the f32 length is accurate to a few ulps.
     if (1e-20..=1e20).contains(&len2) {
         return Some(NormalCheck {
-            normal: scale(n, 1.0 / len2.sqrt()),
-            orthogonal_tolerance: 0.9 * ORTHOGONAL_TOLERANCE,
+            normal: n,
+            orthogonal_tolerance: 0.9 * ORTHOGONAL_TOLERANCE * len2.sqrt(),
         });
     }
     unit(n).map(|normal| NormalCheck {
