@@ -94,6 +94,19 @@ mod triangles;
 mod vectors;
 mod weld;
 
+#[cfg(test)]
+mod test_support {
+    /// A xorshift generator: the tests' random inputs, the same on every run.
+    pub(crate) fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        }
+    }
+}
+
 pub use diagnostics::{Diagnostics, FallbackCounts, Tally};
 pub use marks::{Marks, TriangleMarks, marks};
 pub use normals::{GeneratedNormals, generate_normals};

@@ -1487,16 +1487,7 @@ fn label_components(corners: &[u32], flags: &[u8], scratch: &mut Scratch) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A xorshift generator: the tests' random inputs, the same on every run.
-    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
-        move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        }
-    }
+    use crate::test_support::xorshift;
 
     /// `scaled_to_bytes` puts the largest component in [64, 128) and keeps the direction, or
     /// gives zero; and two vectors whose bytes pass `T_DIRECTIONS_CLOSE` make a cosine above
