@@ -178,16 +178,30 @@ const SHARD_VERTICES: usize = 1 << 13;
 /// the first of each class is found first. Class ids are then numbered by first appearance,
 /// exactly as [`weld_in_one_table`] numbers them.
 fn weld_in_shards(key: &Key<'_>, parallel: bool) -> Weld {
-    let first_of_vertex = first_equal_vertices(key, parallel);
-    number_classes(first_of_vertex, parallel)
+    match first_equal_vertices(key, parallel) {
+        Some(first_of_vertex) => number_classes(first_of_vertex, parallel),
+        // Every vertex is its own class, as in nearly every indexed mesh.
+        None => {
+            let vertices = 0..key.positions.len() as u32;
+            Weld {
+                class_of_vertex: if parallel {
+                    vertices.into_par_iter().with_min_len(MIN_LEN).collect()
+                } else {
+                    vertices.collect()
+                },
+                class_count: key.positions.len(),
+            }
+        }
+    }
 }
 
 /// The smallest piece of a per-vertex pass worth handing to another thread.
 const MIN_LEN: usize = 1 << 14;
 
 /// For every vertex, the first vertex (lowest index) with an equal key: the vertices are hashed
-/// into shards by their hash's top bits, and each shard is welded in a table of its own.
-fn first_equal_vertices(key: &Key<'_>, parallel: bool) -> Vec<u32> {
+/// into shards by their hash's top bits, and each shard is welded in a table of its own. `None`
+/// when every vertex is its own first, which spares putting the firsts back in vertex order.
+fn first_equal_vertices(key: &Key<'_>, parallel: bool) -> Option<Vec<u32>> {
     let vertex_count = key.positions.len();
     let shard_bits = (vertex_count / SHARD_VERTICES)
         .next_power_of_two()
@@ -228,7 +242,9 @@ fn first_equal_vertices(key: &Key<'_>, parallel: bool) -> Vec<u32> {
         pieces.push((shard, piece));
         rest = tail;
     }
+    // Whether the shard found any vertex equal to an earlier one.
     let weld_shard = |(shard, firsts): (usize, &mut [u32])| {
+        let mut welded = false;
         let vertices = by_shard.of(shard);
         let mut buckets = 16usize;
         while buckets < vertices.len() + vertices.len() / 2 {
@@ -250,26 +266,35 @@ fn first_equal_vertices(key: &Key<'_>, parallel: bool) -> Vec<u32> {
                 }
                 if held_tag == tag && key.equal(held as usize, v as usize) {
                     *first = held;
+                    welded = true;
                     break;
                 }
                 probe += 1;
                 slot = (slot + probe) & mask;
             }
         }
+        welded
     };
-    if parallel {
-        pieces.into_par_iter().for_each(weld_shard);
+    // Every shard is welded (no `any`, which would stop at the first that welds).
+    let welded = if parallel {
+        pieces
+            .into_par_iter()
+            .map(weld_shard)
+            .reduce(|| false, |a, b| a | b)
     } else {
-        pieces.into_iter().for_each(weld_shard);
-    }
+        pieces.into_iter().map(weld_shard).fold(false, |a, b| a | b)
+    };
     drop(tags);
+    if !welded {
+        return None;
+    }
 
     // Back to vertex order; vertices outside every shard are their own first.
     let mut first_of_vertex: Vec<u32> = (0..vertex_count as u32).collect();
     for (&v, &first) in by_shard.corners.iter().zip(&firsts) {
         first_of_vertex[v as usize] = first;
     }
-    first_of_vertex
+    Some(first_of_vertex)
 }
 
 /// Classes numbered by first appearance: a prefix count of the vertices that are their own
@@ -772,6 +797,34 @@ mod tests {
             let keyed = weld_in_one_table::<FirstKeys>(&key);
             assert_eq!(keyed.class_count, expected.class_count);
             assert!(keyed.class_of_vertex == expected.class_of_vertex);
+        }
+    }
+
+    /// Where no two vertices are equal (copies of a NaN vertex equal nothing either), the
+    /// sharded weld gives every vertex its own class, as one table does.
+    #[test]
+    fn sharded_weld_of_distinct_vertices_is_the_identity() {
+        let count = SHARD_VERTICES * 12 + 17;
+        let positions: Vec<[f32; 3]> = (0..count)
+            .map(|v| {
+                if v % 1000 == 7 {
+                    [f32::NAN, 0.0, 0.0]
+                } else {
+                    [v as f32, -0.0, 1.0]
+                }
+            })
+            .collect();
+        let key = Key {
+            positions: &positions,
+            normals: None,
+            uvs: None,
+        };
+        let expected = weld_in_one_table::<FirstVertices>(&key);
+        assert_eq!(expected.class_count, count);
+        for parallel in [false, true] {
+            let sharded = weld_in_shards(&key, parallel);
+            assert_eq!(sharded.class_count, count);
+            assert!(sharded.class_of_vertex == expected.class_of_vertex);
         }
     }
 
