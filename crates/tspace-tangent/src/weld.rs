@@ -133,12 +133,7 @@ pub(crate) fn weld_vertices(key: &Key<'_>, parallel: bool) -> Weld {
 
 /// [`weld_vertices`], told whether most vertices are expected to repeat.
 fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
-    let most_buckets = if parallel {
-        ONE_TABLE_MAX_BUCKETS
-    } else {
-        ONE_THREAD_MAX_BUCKETS
-    };
-    if one_table_buckets(key.positions.len()) <= most_buckets {
+    if one_table_buckets(key.positions.len()) <= ONE_TABLE_MAX_BUCKETS {
         return if mostly_repeated {
             weld_in_one_table::<FirstKeys>(key)
         } else {
@@ -151,13 +146,11 @@ fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
 /// Up to this many slots (1 MiB with their tags), one table stays in a core's L2 or nearby L3
 /// cache and beats the shards' extra passes, even on two threads (a 70k-vertex mesh welds about
 /// 7% faster than in shards; a 100k-vertex one, whose table would be twice the size, about 15%
-/// slower). Beyond it, the table is split into shards (see [`weld_in_shards`]).
+/// slower). Beyond it, the table is split into shards (see [`weld_in_shards`]). On one thread,
+/// the weld alone of a 100k-vertex mesh is 13% faster in one table than in shards, but the
+/// whole call was not (the 200k torus 2.5% slower in five interleaved rounds), so the limit is
+/// the same there.
 const ONE_TABLE_MAX_BUCKETS: usize = 1 << 17;
-
-/// The same on one thread, where the shards' passes are not shared out: one table is faster up
-/// to a table of 4 MiB, past a core's L2 cache (a 100k-vertex mesh welds 13% faster than in
-/// shards, a 250k-vertex one 15–30%; a million vertices, a 16 MiB table, about as fast).
-const ONE_THREAD_MAX_BUCKETS: usize = 1 << 19;
 
 /// The number of slots of [`weld_in_one_table`]'s table: a power of two, at least 1.5 per vertex.
 fn one_table_buckets(vertex_count: usize) -> usize {
