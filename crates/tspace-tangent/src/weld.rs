@@ -330,15 +330,7 @@ fn number_classes(first_of_vertex: Vec<u32>, parallel: bool) -> Weld {
             class_count: vertex_count,
         };
     }
-    let mut class_count = 0u32;
-    let block_starts: Vec<u32> = counts
-        .iter()
-        .map(|&n| {
-            let start = class_count;
-            class_count += n;
-            start
-        })
-        .collect();
+    let (block_starts, class_count) = starts_and_total(&counts);
     // Own classes first (NONE elsewhere), then every vertex takes its first's class.
     let mut own_class = vec![NONE; vertex_count];
     let number = |(b, (own, firsts)): (usize, (&mut [u32], &[u32]))| {
@@ -543,6 +535,20 @@ fn lay_out<C: AsMut<[u32]>>(counts: &mut [C], offsets: &mut [u32], start: u32) -
     running
 }
 
+/// Where each of `counts` starts when they are laid end to end, and where the last ends.
+fn starts_and_total(counts: &[u32]) -> (Vec<u32>, u32) {
+    let mut total = 0u32;
+    let starts = counts
+        .iter()
+        .map(|&n| {
+            let start = total;
+            total += n;
+            start
+        })
+        .collect();
+    (starts, total)
+}
+
 /// Classes per piece of [`lay_out_in_parallel`].
 const LAY_OUT_CLASSES: usize = 1 << 15;
 
@@ -562,15 +568,7 @@ fn lay_out_in_parallel(counts: &mut [Vec<u32>], offsets: &mut [u32]) -> u32 {
                 .sum()
         })
         .collect();
-    let mut running = 0u32;
-    let starts: Vec<u32> = sums
-        .iter()
-        .map(|&sum| {
-            let start = running;
-            running += sum;
-            start
-        })
-        .collect();
+    let (starts, running) = starts_and_total(&sums);
     // Each piece of classes, with its places in every block's counts.
     let mut by_piece: Vec<Vec<&mut [u32]>> = (0..pieces).map(|_| Vec::new()).collect();
     for block in counts.iter_mut() {
