@@ -402,8 +402,8 @@ unsafe fn store_contributions_avx2(
                 let load = |column: &[f32; BATCH]| _mm256_loadu_ps(column.as_ptr().add(block));
                 let (x, y, z) = (load(wx), load(wy), load(wz));
                 // The direction's components truncated to bytes (all below 128 in magnitude
-                // and so in range; NaN gives 0x80000000, whose low byte is 0, as `NaN as i8` is) in one
-                // word.
+                // and so in range; NaN gives 0x80000000, whose low byte is 0, as `NaN as i8`
+                // is) in one word.
                 let byte = |column: &[f32; BATCH]| {
                     _mm256_and_si256(_mm256_cvttps_epi32(load(column)), _mm256_set1_epi32(0xff))
                 };
