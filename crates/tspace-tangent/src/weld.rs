@@ -291,7 +291,8 @@ fn first_equal_vertices(key: &Key<'_>, parallel: bool) -> Option<Vec<u32>> {
 }
 
 /// Classes numbered by first appearance: a prefix count of the vertices that are their own
-/// first, block by block, then every vertex takes its first's class.
+/// first, block by block, then every vertex takes its first's class. Only where some vertex
+/// welded (where none did, [`weld_in_shards`] knows the classes are the vertices).
 fn number_classes(first_of_vertex: Vec<u32>, parallel: bool) -> Weld {
     let vertex_count = first_of_vertex.len();
     let blocks = if parallel {
@@ -321,15 +322,6 @@ fn number_classes(first_of_vertex: Vec<u32>, parallel: bool) -> Weld {
             .map(count_firsts)
             .collect()
     };
-    if counts.iter().map(|&n| n as usize).sum::<usize>() == vertex_count {
-        // Every vertex is its own first, as in nearly every indexed mesh: the classes are the
-        // vertices, numbered as they are.
-        debug_assert!(first_of_vertex.iter().zip(0..).all(|(&f, v)| f == v));
-        return Weld {
-            class_of_vertex: first_of_vertex,
-            class_count: vertex_count,
-        };
-    }
     let (block_starts, class_count) = starts_and_total(&counts);
     // Own classes first (NONE elsewhere), then every vertex takes its first's class.
     let mut own_class = vec![NONE; vertex_count];
