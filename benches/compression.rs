@@ -229,7 +229,7 @@ fn bench_meshopt(csv: &mut String, rounds: usize) {
         .iter()
         .map(|t| [unorm16(t[0], 0.0, 1.0), unorm16(t[1], 0.0, 1.0)])
         .collect();
-    let indices = &split.indices;
+    let indices = &*split.indices_for(Some(&p.indices));
     // Version 0 of the vertex codec, the one EXT_meshopt_compression allows (tspace writes it).
     fn encoded<T>(vertices: &[T]) -> usize {
         meshopt::encode_vertex_buffer_level(vertices, 2, Some(0)).map_or(0, |b| b.len())

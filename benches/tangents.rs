@@ -340,7 +340,7 @@ fn bench_mesh(mesh: &BenchMesh, config: &Config) -> MeshReport {
             m.heap = Some(heap);
         }
         if let Some(exact) = &mesh.exact_tangents {
-            m.error = error_against_exact(&output.corners(), &mesh.indices, exact);
+            m.error = error_against_exact(&output.corners(mesh), &mesh.indices, exact);
         }
         match m.contender {
             Contender::MikkSingle => mikk_corners = Some(output),
@@ -350,7 +350,7 @@ fn bench_mesh(mesh: &BenchMesh, config: &Config) -> MeshReport {
         }
     }
     let against_bevy = |other: &Option<support::contenders::Output>| match (other, &bevy_corners) {
-        (Some(other), Some(bevy)) => Some(deviation(&other.corners(), &bevy.corners())),
+        (Some(other), Some(bevy)) => Some(deviation(&other.corners(mesh), &bevy.corners(mesh))),
         _ => None,
     };
     let mikk_vs_bevy_degrees = against_bevy(&mikk_corners).map(|(max, _)| max);

@@ -26,7 +26,11 @@ fn compare(
         let mut worst = 0.0f64;
         let mut bad = 0;
         let mut exact = 0;
-        for (c, (r, o)) in reference.iter().zip(&ours.corner_tangents()).enumerate() {
+        for (c, (r, o)) in reference
+            .iter()
+            .zip(&ours.corner_tangents(input.indices))
+            .enumerate()
+        {
             let n = normals[indices[c] as usize];
             if !reference_is_valid(*r, n) {
                 continue;

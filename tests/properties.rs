@@ -93,10 +93,11 @@ fn check_output(mesh: &RandomMesh, options: &Options, out: &Tangents) -> Result<
     // valid: the invariants the fuzz target checks too. That the per-corner values are
     // MikkTSpace's is the oracle tests' job.
     invariants::check_core(&mesh.input(), options, out).map_err(TestCaseError::fail)?;
-    prop_assert_eq!(out.corner_tangents().len(), corner_count);
+    let indices = mesh.indices.as_deref();
+    prop_assert_eq!(out.corner_tangents(indices).len(), corner_count);
     if let Some(normals) = &out.normals {
         for c in 0..corner_count {
-            let o = split.indices[c] as usize;
+            let o = split.vertex_of(c, indices);
             check_generated_normal(mesh, options.normal_mode, c, normals[o])?;
         }
     }
@@ -226,8 +227,9 @@ fn check_diagnostics(
         &duplicate,
         "duplicate_position_triangles",
     )?;
+    let indices = mesh.indices.as_deref();
     let mixed: Vec<u32> = out
-        .corner_tangents()
+        .corner_tangents(indices)
         .chunks_exact(3)
         .enumerate()
         .filter(|(_, c)| c[0][3] != c[1][3] || c[0][3] != c[2][3])
@@ -242,9 +244,9 @@ fn check_diagnostics(
     // generated normal; it flips handedness when its corners got both signs of w.
     let mut signs: HashMap<(u32, Option<[u32; 3]>), u8> = HashMap::new();
     for c in 0..corner_count {
-        let o = out.split.indices[c] as usize;
+        let o = out.split.vertex_of(c, indices);
         let normal = out.normals.as_ref().map(|n| key3(&n[o]));
-        let w = out.corner_tangent(c)[3];
+        let w = out.corner_tangent(c, indices)[3];
         *signs
             .entry((out.split.source_vertex[o], normal))
             .or_default() |= if w > 0.0 { 1 } else { 2 };
@@ -320,11 +322,17 @@ fn same_normal_mode(a: Option<NormalMode>, b: Option<NormalMode>) -> bool {
     bits(a) == bits(b)
 }
 
-/// Bit-identical results.
-fn check_identical(a: &Tangents, b: &Tangents, what: &str) -> Result<(), TestCaseError> {
+/// Bit-identical results for `mesh`.
+fn check_identical(
+    mesh: &RandomMesh,
+    a: &Tangents,
+    b: &Tangents,
+    what: &str,
+) -> Result<(), TestCaseError> {
+    let indices = mesh.indices.as_deref();
     prop_assert_eq!(
-        bits4(&a.corner_tangents()),
-        bits4(&b.corner_tangents()),
+        bits4(&a.corner_tangents(indices)),
+        bits4(&b.corner_tangents(indices)),
         "{}: corner tangents differ",
         what
     );
@@ -353,11 +361,17 @@ fn check_identical(a: &Tangents, b: &Tangents, what: &str) -> Result<(), TestCas
 
 /// The other UV origin only negates `w` of the UV methods (and changes which triangles count as
 /// mirrored).
-fn check_origin_swap(method: Method, a: &Tangents, b: &Tangents) -> Result<(), TestCaseError> {
+fn check_origin_swap(
+    mesh: &RandomMesh,
+    method: Method,
+    a: &Tangents,
+    b: &Tangents,
+) -> Result<(), TestCaseError> {
+    let indices = mesh.indices.as_deref();
     for (c, (ta, tb)) in a
-        .corner_tangents()
+        .corner_tangents(indices)
         .iter()
-        .zip(&b.corner_tangents())
+        .zip(&b.corner_tangents(indices))
         .enumerate()
     {
         let expected_w = if method == Method::Axis {
@@ -463,7 +477,7 @@ fn check_everything(mesh: &RandomMesh, options: Options) -> Result<(), TestCaseE
             ..options
         },
     )?;
-    check_identical(&sequential, &parallel, "sequential vs parallel")?;
+    check_identical(mesh, &sequential, &parallel, "sequential vs parallel")?;
     let other_origin = Options {
         uv_origin: match options.uv_origin {
             UvOrigin::TopLeft => UvOrigin::BottomLeft,
@@ -473,7 +487,7 @@ fn check_everything(mesh: &RandomMesh, options: Options) -> Result<(), TestCaseE
     };
     let swapped = run(mesh, &other_origin)?;
     check_output(mesh, &other_origin, &swapped)?;
-    check_origin_swap(options.method, &sequential, &swapped)?;
+    check_origin_swap(mesh, options.method, &sequential, &swapped)?;
     if options.method == Method::Axis && mesh.uvs.is_some() {
         // Axis tangents do not depend on texture coordinates at all.
         let without = RandomMesh {
@@ -481,9 +495,10 @@ fn check_everything(mesh: &RandomMesh, options: Options) -> Result<(), TestCaseE
             ..mesh.clone()
         };
         let bare = run(&without, &options)?;
+        let indices = mesh.indices.as_deref();
         prop_assert_eq!(
-            bits4(&bare.corner_tangents()),
-            bits4(&sequential.corner_tangents())
+            bits4(&bare.corner_tangents(indices)),
+            bits4(&sequential.corner_tangents(indices))
         );
         prop_assert_eq!(&bare.split, &sequential.split);
     }
@@ -561,7 +576,11 @@ proptest! {
         let unindexed_mesh = mesh.unindexed();
         let unindexed = run(&unindexed_mesh, &options)?;
         check_output(&unindexed_mesh, &options, &unindexed)?;
-        for (c, (a, b)) in indexed.corner_tangents().iter().zip(&unindexed.corner_tangents()).enumerate() {
+        let (indexed, unindexed) = (
+            indexed.corner_tangents(mesh.indices.as_deref()),
+            unindexed.corner_tangents(None),
+        );
+        for (c, (a, b)) in indexed.iter().zip(&unindexed).enumerate() {
             prop_assert_eq!(key4(a), key4(b), "corner {}: indexed {:?}, unindexed {:?}", c, a, b);
         }
     }
@@ -870,8 +889,9 @@ proptest! {
             check_output(&mesh, &options, &sequential)?;
             let parallel = Options { parallel: true, ..options };
             let what = format!("{method:?} {weighting:?}");
-            check_identical(&sequential, &run(&mesh, &parallel)?, &what)?;
-            check_identical(&sequential, &run_on_pool(&mesh, &parallel, threads)?, &what)?;
+            check_identical(&mesh, &sequential, &run(&mesh, &parallel)?, &what)?;
+            let on_pool = run_on_pool(&mesh, &parallel, threads)?;
+            check_identical(&mesh, &sequential, &on_pool, &what)?;
         }
     }
 }
@@ -929,8 +949,9 @@ fn mirrored_half_quad_flips_handedness() {
             continue;
         }
         let out = assert_valid(&mesh, &options);
+        let indices = mesh.indices.as_deref();
         let w = out
-            .corner_tangents()
+            .corner_tangents(indices)
             .iter()
             .map(|t| t[3])
             .collect::<Vec<_>>();
@@ -943,7 +964,7 @@ fn mirrored_half_quad_flips_handedness() {
             UvOrigin::TopLeft => -1.0,
         };
         assert_eq!(w[0], expected_w, "{options:?}");
-        for t in &out.corner_tangents()[..3] {
+        for t in &out.corner_tangents(indices)[..3] {
             assert!((t[0] - 1.0).abs() < 1e-6, "{options:?}: {t:?}");
         }
         let d = &out.diagnostics;
@@ -1078,7 +1099,8 @@ fn axis_needs_no_uvs_and_the_uv_methods_do() {
             let result = generate(&mesh.input(), &options);
             if options.method == Method::Axis {
                 let out = assert_valid(&mesh, &options);
-                assert!(out.corner_tangents().iter().all(|t| t[3] == 1.0));
+                let indices = mesh.indices.as_deref();
+                assert!(out.corner_tangents(indices).iter().all(|t| t[3] == 1.0));
                 assert_eq!(out.diagnostics.fallback_tangents.corners.count, 0);
             } else {
                 assert_eq!(
@@ -1102,7 +1124,7 @@ fn empty_mesh_is_fine() {
     };
     for options in all_options() {
         let out = assert_valid(&mesh, &options);
-        assert!(out.corner_tangents().is_empty() && out.split.source_vertex.is_empty());
+        assert!(out.corner_tangents(None).is_empty() && out.split.source_vertex.is_empty());
     }
     let unused_only = RandomMesh {
         positions: vec![[0.0; 3]; 4],

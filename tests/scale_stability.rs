@@ -55,7 +55,7 @@ fn tangents(p: &Primitive, positions: &[[f32; 3]]) -> Vec<[f32; 4]> {
     };
     generate(&input, &Options::default())
         .expect("valid mesh")
-        .corner_tangents()
+        .corner_tangents(input.indices)
 }
 
 fn angle(a: [f32; 4], b: [f32; 4]) -> f64 {

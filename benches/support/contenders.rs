@@ -148,10 +148,10 @@ pub enum Output {
 }
 
 impl Output {
-    /// One tangent per corner (per index), `xyz` and the sign in `w`.
-    pub fn corners(&self) -> std::borrow::Cow<'_, [[f32; 4]]> {
+    /// One tangent per corner (per index) of `mesh`, `xyz` and the sign in `w`.
+    pub fn corners(&self, mesh: &BenchMesh) -> std::borrow::Cow<'_, [[f32; 4]]> {
         match self {
-            Output::Tspace(t) => std::borrow::Cow::Owned(t.corner_tangents()),
+            Output::Tspace(t) => std::borrow::Cow::Owned(t.corner_tangents(Some(&mesh.indices))),
             Output::Corners(c) => std::borrow::Cow::Borrowed(c),
         }
     }

@@ -60,7 +60,7 @@
 //! // No vertex needed splitting: one tangent per input vertex, +x with w = +1.
 //! assert_eq!(result.split.vertex_tangents.len(), 4);
 //! for corner in 0..indices.len() {
-//!     assert_eq!(result.corner_tangent(corner), [1.0, 0.0, 0.0, 1.0]);
+//!     assert_eq!(result.corner_tangent(corner, input.indices), [1.0, 0.0, 0.0, 1.0]);
 //! }
 //! assert_eq!(result.diagnostics.fallback_tangents.corners.count, 0);
 //! # Ok::<(), tspace_tangent::CoreError>(())
@@ -69,7 +69,8 @@
 //! The [`SplitPlan`] says how to rebuild the vertex buffer so that every vertex has one tangent:
 //! `source_vertex` lists the input vertex each output vertex copies (so skin weights, colours and
 //! morph targets can be duplicated the same way), and `indices` gives every corner its output
-//! vertex, triangle for triangle in input order.
+//! vertex, triangle for triangle in input order, where any corner changed vertex (where none
+//! did, the input's own indices stand, and the plan holds no copy of them).
 //!
 //! A service that stops waiting for a result (its request timed out, its client left) can get
 //! its thread back: [`generate_cancellable`] takes a [`Cancel`] flag that another thread sets,
@@ -303,15 +304,17 @@ pub struct Tangents {
 
 impl Tangents {
     /// The tangent of one corner (index position, or vertex when the input is not indexed):
-    /// `xyz` unit and orthogonal to the normal, `w` = ±1.
-    pub fn corner_tangent(&self, corner: usize) -> [f32; 4] {
-        self.split.vertex_tangents[self.split.indices[corner] as usize]
+    /// `xyz` unit and orthogonal to the normal, `w` = ±1. `input_indices` are the indices of
+    /// the input these tangents were generated for ([`MeshInput::indices`]).
+    pub fn corner_tangent(&self, corner: usize, input_indices: Option<&[u32]>) -> [f32; 4] {
+        self.split.vertex_tangents[self.split.vertex_of(corner, input_indices)]
     }
 
-    /// The tangent of every corner, in input order.
-    pub fn corner_tangents(&self) -> Vec<[f32; 4]> {
+    /// The tangent of every corner, in input order (`input_indices` as for
+    /// [`Tangents::corner_tangent`]).
+    pub fn corner_tangents(&self, input_indices: Option<&[u32]>) -> Vec<[f32; 4]> {
         self.split
-            .indices
+            .indices_for(input_indices)
             .iter()
             .map(|&v| self.split.vertex_tangents[v as usize])
             .collect()
@@ -509,7 +512,7 @@ impl<'a> Prepared<'a> {
     /// With generated normals, the plan so far speaks of the normals' split: re-expressed in
     /// terms of the caller's vertices, with the normals handed back one per output vertex.
     fn express_in_input_vertices(
-        &self,
+        self,
         split: &mut SplitPlan,
         diagnostics: &mut Diagnostics,
     ) -> Option<Vec<[f32; 3]>> {
@@ -522,17 +525,23 @@ impl<'a> Prepared<'a> {
         else {
             return None;
         };
+        let source_vertex = &generated.source_vertex;
         let normals = split
             .source_vertex
             .iter()
             .map(|&v| generated.normals[v as usize])
             .collect();
         for v in &mut split.source_vertex {
-            *v = generated.source_vertex[*v as usize];
+            *v = source_vertex[*v as usize];
         }
-        diagnostics.generated_normals = Some(*normal_mode);
-        diagnostics.vertices_in = *vertices_in as u64;
-        diagnostics.vertices_added = split.source_vertex.len().saturating_sub(*vertices_in) as u64;
+        // The normals' split numbered the corners' vertices anew: the plan's indices, even
+        // where they are that split's own, are not the caller's.
+        if split.indices.is_none() {
+            split.indices = Some(generated.indices);
+        }
+        diagnostics.generated_normals = Some(normal_mode);
+        diagnostics.vertices_in = vertices_in as u64;
+        diagnostics.vertices_added = split.source_vertex.len().saturating_sub(vertices_in) as u64;
         Some(normals)
     }
 }

@@ -124,13 +124,14 @@ pub fn marks(input: &MeshInput<'_>, options: &Options, tangents: &Tangents) -> M
     }
     Marks {
         triangles,
-        flip_vertices: flip_vertices(tangents, vertex_count, corner_count, vertex),
+        flip_vertices: flip_vertices(tangents, input.indices, vertex_count, corner_count, vertex),
     }
 }
 
 /// The input vertices whose corners' tangents have both signs of `w`.
 fn flip_vertices(
     tangents: &Tangents,
+    input_indices: Option<&[u32]>,
     vertex_count: usize,
     corner_count: usize,
     vertex: impl Fn(usize) -> usize,
@@ -139,8 +140,9 @@ fn flip_vertices(
     const NEGATIVE: u8 = 2;
     let mut signs = vec![0u8; vertex_count];
     let split = &tangents.split;
-    for corner in 0..corner_count.min(split.indices.len()) {
-        let Some(tangent) = split.vertex_tangents.get(split.indices[corner] as usize) else {
+    let output_vertices = split.indices_for(input_indices);
+    for (corner, &output_vertex) in output_vertices.iter().enumerate().take(corner_count) {
+        let Some(tangent) = split.vertex_tangents.get(output_vertex as usize) else {
             continue;
         };
         if let Some(sign) = signs.get_mut(vertex(corner)) {

@@ -177,18 +177,24 @@ impl<'a> SharedSplit<'a> {
             .map(|lanes| lanes.map(|lane| f32::from_bits(lane.into_inner())))
             .collect();
         vertex_tangents.reserve(added);
-        let mut indices: Vec<u32> = Vec::with_capacity(self.indices.len());
-        if self.parallel {
-            indices.par_extend(self.indices.par_iter().copied());
-        } else {
-            indices.extend_from_slice(self.indices);
-        }
+        // Where no vertex was added, every corner keeps its vertex: the input's indices stand.
+        let mut indices: Option<Vec<u32>> = (added > 0).then(|| {
+            let mut indices = Vec::with_capacity(self.indices.len());
+            if self.parallel {
+                indices.par_extend(self.indices.par_iter().copied());
+            } else {
+                indices.extend_from_slice(self.indices);
+            }
+            indices
+        });
         // A vertex whose duplicate has the other handedness saw both.
         let mut flipped: Vec<u32> = Vec::new();
         for part in parts {
             let base = source_vertex.len() as u32;
-            for &(corner, local) in &part.corners {
-                indices[corner as usize] = base + local;
+            if let Some(indices) = &mut indices {
+                for &(corner, local) in &part.corners {
+                    indices[corner as usize] = base + local;
+                }
             }
             for (&source, copy) in part.source.iter().zip(&part.tangent) {
                 if (copy[3] > 0.0) != (vertex_tangents[source as usize][3] > 0.0) {
@@ -231,16 +237,21 @@ impl<'a> SharedSplit<'a> {
                 break;
             }
         }
+        let corner_vertices = indices.as_deref().unwrap_or(self.indices);
         let runs: Vec<Tally> = if !(seen.0 && seen.1) {
             Vec::new()
         } else if self.parallel {
-            indices
+            corner_vertices
                 .par_chunks(3 * RUN)
                 .enumerate()
                 .map(mixed_in)
                 .collect()
         } else {
-            indices.chunks(3 * RUN).enumerate().map(mixed_in).collect()
+            corner_vertices
+                .chunks(3 * RUN)
+                .enumerate()
+                .map(mixed_in)
+                .collect()
         };
         let mut mixed = Tally::default();
         for run in &runs {

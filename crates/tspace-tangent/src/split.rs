@@ -10,6 +10,7 @@
 use super::diagnostics::{Diagnostics, Tally};
 use super::math::{any_orthogonal, unit};
 use super::weld::NONE;
+use std::borrow::Cow;
 
 /// How to rebuild the vertex buffer so that each vertex carries exactly one tangent.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -19,8 +20,13 @@ pub struct SplitPlan {
     /// not). When normals were generated, vertices are first split by normal, and the list maps
     /// each output vertex (in order of first use) back to its input vertex.
     pub source_vertex: Vec<u32>,
-    /// The new index buffer: one entry per input corner, same order.
-    pub indices: Vec<u32>,
+    /// The new index buffer: one entry per input corner, same order. `None` where no vertex was
+    /// added and the normals were given, as in most meshes: every corner keeps its input
+    /// vertex, so the input's own indices (`0, 1, 2, …` for a triangle list without indices)
+    /// are the plan's, and a copy of them would cost 4 bytes a corner of fresh memory (24 MB of
+    /// the 2M-triangle sphere's peak) and a pass, for a caller that keeps the input's index
+    /// buffer anyway. [`SplitPlan::vertex_of`] and [`SplitPlan::indices_for`] read either.
+    pub indices: Option<Vec<u32>>,
     /// The tangent of every output vertex.
     pub vertex_tangents: Vec<[f32; 4]>,
 }
@@ -29,6 +35,27 @@ impl SplitPlan {
     /// True when no vertex was added (the plan is the identity).
     pub fn is_identity(&self, vertex_count: usize) -> bool {
         self.source_vertex.len() == vertex_count
+    }
+
+    /// The output vertex of `corner`, for the input's indices `input_indices` (`None` where the
+    /// input was a triangle list without indices), which the plan was made for.
+    pub fn vertex_of(&self, corner: usize, input_indices: Option<&[u32]>) -> usize {
+        match (&self.indices, input_indices) {
+            (Some(indices), _) => indices[corner] as usize,
+            (None, Some(input)) => input[corner] as usize,
+            (None, None) => corner,
+        }
+    }
+
+    /// The whole new index buffer, for the input's indices `input_indices` (`None` where the
+    /// input was a triangle list without indices, whose corners are then its vertices): the
+    /// plan's own, or the input's where they stand.
+    pub fn indices_for<'a>(&'a self, input_indices: Option<&'a [u32]>) -> Cow<'a, [u32]> {
+        match (&self.indices, input_indices) {
+            (Some(indices), _) => Cow::Borrowed(indices),
+            (None, Some(input)) => Cow::Borrowed(input),
+            (None, None) => Cow::Owned((0..self.source_vertex.len() as u32).collect()),
+        }
     }
 }
 
@@ -104,9 +131,10 @@ pub(crate) fn plan(
     diagnostics.vertices_out = source_vertex.len() as u64;
     diagnostics.vertices_added = (source_vertex.len() - vertex_count) as u64;
 
+    let indices = (source_vertex.len() > vertex_count).then_some(out_indices);
     SplitPlan {
         source_vertex,
-        indices: out_indices,
+        indices,
         vertex_tangents,
     }
 }
@@ -125,7 +153,7 @@ mod tests {
         let mut d = Diagnostics::default();
         let plan = plan(&indices, 4, &tangents, &normals, &mut d);
         assert_eq!(plan.source_vertex, vec![0, 1, 2, 3, 1]);
-        assert_eq!(plan.indices, vec![0, 1, 2, 2, 4, 3]);
+        assert_eq!(plan.indices, Some(vec![0, 1, 2, 2, 4, 3]));
         assert_eq!(plan.vertex_tangents[4], b);
         assert_eq!(plan.vertex_tangents[3], b);
         assert_eq!(d.vertices_added, 1);
@@ -144,6 +172,12 @@ mod tests {
             &mut d,
         );
         assert_eq!(plan.source_vertex, vec![0, 1]);
+        assert_eq!(
+            plan.indices, None,
+            "nothing split: the input's indices stand"
+        );
+        assert_eq!(plan.vertex_of(2, Some(&[0, 0, 0])), 0);
+        assert_eq!(plan.indices_for(None).as_ref(), [0, 1]);
         let t = plan.vertex_tangents[1];
         assert!((t[0] * t[0] + t[1] * t[1] + t[2] * t[2] - 1.0).abs() < 1e-6 && t[2] == 0.0);
     }

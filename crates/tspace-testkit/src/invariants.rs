@@ -91,7 +91,14 @@ pub fn check_core(input: &MeshInput<'_>, options: &Options, out: &Tangents) -> R
     let vertex_of = |c: usize| input.indices.map_or(c, |i| i[c] as usize);
     let split = &out.split;
     let output_count = split.source_vertex.len();
-    ensure_eq!(split.indices.len(), corner_count, "{options:?}");
+    // The plan leaves the input's indices where they stand, and only there.
+    ensure_eq!(
+        split.indices.is_none(),
+        out.normals.is_none() && output_count == vertex_count,
+        "{options:?}: the plan's own indices"
+    );
+    let indices = split.indices_for(input.indices);
+    ensure_eq!(indices.len(), corner_count, "{options:?}");
     ensure_eq!(split.vertex_tangents.len(), output_count, "{options:?}");
     ensure!(
         split
@@ -101,7 +108,7 @@ pub fn check_core(input: &MeshInput<'_>, options: &Options, out: &Tangents) -> R
         "source vertex out of range"
     );
     ensure!(
-        split.indices.iter().all(|&v| (v as usize) < output_count),
+        indices.iter().all(|&v| (v as usize) < output_count),
         "split index out of range"
     );
     match (input.normals, &out.normals) {
@@ -138,7 +145,7 @@ pub fn check_core(input: &MeshInput<'_>, options: &Options, out: &Tangents) -> R
     }
     let mut used = vec![false; output_count];
     for c in 0..corner_count {
-        let o = split.indices[c] as usize;
+        let o = indices[c] as usize;
         used[o] = true;
         let normal = match (&out.normals, input.normals) {
             (Some(generated), _) => unit64(generated[o]).unwrap_or(PLUS_Z),

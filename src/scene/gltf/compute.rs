@@ -309,17 +309,22 @@ fn morphed_tangents(
 
 /// Per output vertex of the base, the morphed tangent minus the base one, and how many corners
 /// flip handedness under the target. glTF gives a target one TANGENT displacement per vertex,
-/// so a vertex whose corners disagree once morphed takes its first corner's.
-fn tangent_deltas(base: &SplitPlan, morphed: &Tangents) -> (Vec<[f32; 3]>, u64) {
+/// so a vertex whose corners disagree once morphed takes its first corner's. `indices` are the
+/// geometry's, for which both were computed.
+fn tangent_deltas(
+    base: &SplitPlan,
+    morphed: &Tangents,
+    indices: Option<&[u32]>,
+) -> (Vec<[f32; 3]>, u64) {
     let mut deltas = vec![[0.0f32; 3]; base.vertex_tangents.len()];
     let mut seen = vec![false; base.vertex_tangents.len()];
     let mut handedness_changes = 0;
-    for (corner, &v) in base.indices.iter().enumerate() {
+    for (corner, &v) in base.indices_for(indices).iter().enumerate() {
         let v = v as usize;
         let (Some(done), Some(b)) = (seen.get_mut(v), base.vertex_tangents.get(v)) else {
             continue;
         };
-        let m = morphed.corner_tangent(corner);
+        let m = morphed.corner_tangent(corner, indices);
         if m[3] != b[3] {
             handedness_changes += 1;
         }
@@ -366,7 +371,8 @@ pub fn compute<'a>(
         };
         let morphed = morphed_tangents(&geometry, &displacement, run)
             .map_err(|e| core_error(&target_path, e))?;
-        let (deltas, handedness_changes) = tangent_deltas(&tangents.split, &morphed);
+        let indices = geometry.indices.as_deref();
+        let (deltas, handedness_changes) = tangent_deltas(&tangents.split, &morphed, indices);
         morph_handedness_changes += handedness_changes;
         target_deltas.push(Some(deltas));
     }
@@ -444,7 +450,9 @@ pub fn audit(existing: &[[f32; 4]], computed: &Computed, quantized: bool) -> Res
         let Some(e) = existing.get(geometry.corner_vertex(corner)) else {
             continue;
         };
-        let m = computed.tangents.corner_tangent(corner);
+        let m = computed
+            .tangents
+            .corner_tangent(corner, geometry.indices.as_deref());
         let other_w = (e[3] < 0.0) != (m[3] < 0.0);
         if other_w {
             w_disagreements.add(corner as u32);
@@ -526,7 +534,9 @@ mod tests {
     #[test]
     fn audit_compares_tangents_as_rendered_and_tilt_alone_is_not_invalid() {
         let computed = quad();
-        let reference = computed.tangents.corner_tangent(0);
+        let reference = computed
+            .tangents
+            .corner_tangent(0, computed.geometry.indices.as_deref());
         assert!((reference[0] - 1.0).abs() < 1e-6, "{reference:?}");
         // Tilted 20° out of the surface toward the normal: a renderer's Gram-Schmidt step
         // removes the tilt, so it matches, but it is counted as not orthogonal.

@@ -119,7 +119,12 @@ pub fn paint(computed: &mut Computed, marks: &Marks) -> Painted {
     let mut copies: HashMap<(u32, Class), u32> = HashMap::new();
     let mut appended: Vec<(u32, Class)> = Vec::new();
     let mut triangles = [0u64; 5];
-    for (t, corners) in split.indices.chunks_exact_mut(3).enumerate() {
+    // Refining may give corners other vertices: the plan's own indices, if it had none.
+    let indices = split.indices.get_or_insert_with(|| {
+        let geometry_indices = computed.geometry.indices.as_deref();
+        geometry_indices.map_or_else(|| (0..kept as u32).collect(), <[u32]>::to_vec)
+    });
+    for (t, corners) in indices.chunks_exact_mut(3).enumerate() {
         let class = marks
             .triangles
             .get(t)
@@ -214,7 +219,8 @@ mod tests {
     #[test]
     fn shared_vertices_are_copied_per_class_and_corners_keep_their_tangents() {
         let mut computed = mirrored_pair();
-        let before = computed.tangents.corner_tangents();
+        let indices = computed.geometry.indices.clone();
+        let before = computed.tangents.corner_tangents(indices.as_deref());
         let marks = Marks {
             triangles: vec![
                 TriangleMarks::default(),
@@ -230,9 +236,13 @@ mod tests {
         assert_eq!(split.source_vertex.len(), kept + 2);
         assert_eq!(painted.colors.len(), kept + 2);
         assert_eq!(painted.triangles, [1, 1, 0, 0, 0]);
-        assert_eq!(computed.tangents.corner_tangents(), before);
+        assert_eq!(
+            computed.tangents.corner_tangents(indices.as_deref()),
+            before
+        );
         // Every vertex is used by triangles of one class only, and coloured as that class.
-        for (t, corners) in split.indices.chunks_exact(3).enumerate() {
+        let refined = split.indices.as_deref().expect("refined indices");
+        for (t, corners) in refined.chunks_exact(3).enumerate() {
             let class = if t == 0 {
                 Class::Ordinary
             } else {

@@ -1162,7 +1162,8 @@ impl Edits {
         }
         if !keeps {
             let r = *refs.indices.get_or_insert_with(|| {
-                changes.add_indices(&split.indices, split.source_vertex.len())
+                let indices = split.indices_for(c.geometry.indices.as_deref());
+                changes.add_indices(&indices, split.source_vertex.len())
             });
             edit.indices = Some(r);
             edit.to_triangle_list = topology != Topology::Triangles;
