@@ -172,6 +172,16 @@ pub struct Changes {
     pub extensions_used: Vec<&'static str>,
 }
 
+/// The bytes of `values` as glTF stores them, little-endian: where the machine is too, one copy
+/// of their memory (a value at a time, a 2M-triangle mesh's tangents took a fifth longer).
+fn little_endian_bytes<T: bytemuck::Pod>(values: &[T], to_le: fn(T) -> [u8; 4]) -> Vec<u8> {
+    if cfg!(target_endian = "little") {
+        bytemuck::cast_slice(values).to_vec()
+    } else {
+        values.iter().flat_map(|&v| to_le(v)).collect()
+    }
+}
+
 impl Changes {
     /// Room for `views` more new views and accessors (as many as the jobs add) and
     /// `primitives` more edits, so that the lists are not grown by doubling (room no edit uses
@@ -206,12 +216,7 @@ impl Changes {
 
     /// A float vertex attribute (TANGENT, NORMAL, a morph target's TANGENT deltas).
     pub fn add_floats<const N: usize>(&mut self, values: &[[f32; N]], with_min_max: bool) -> Ref {
-        let mut data = Vec::with_capacity(values.len() * N * 4);
-        for v in values {
-            for c in v {
-                data.extend_from_slice(&c.to_le_bytes());
-            }
-        }
+        let data = little_endian_bytes(values.as_flattened(), f32::to_le_bytes);
         let min_max = with_min_max.then(|| {
             let mut lo = [f32::INFINITY; N];
             let mut hi = [f32::NEG_INFINITY; N];
@@ -303,11 +308,10 @@ impl Changes {
             }
             (ComponentType::U16, data)
         } else {
-            let mut data = Vec::with_capacity(indices.len() * 4);
-            for &i in indices {
-                data.extend_from_slice(&i.to_le_bytes());
-            }
-            (ComponentType::U32, data)
+            (
+                ComponentType::U32,
+                little_endian_bytes(indices, u32::to_le_bytes),
+            )
         };
         let size = component_type.size();
         let view = self.push_view(
