@@ -85,6 +85,10 @@ pub(crate) fn generate(
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
     let corner_class = weld.corner_classes(mesh.indices, parallel);
+    // The vertices' classes are not read again: let them go before the largest arrays are
+    // made (4 bytes a vertex off the peak).
+    let class_count = weld.class_count;
+    drop(weld);
     let mut contributions = filled(triangle_count, parallel, || [Contribution::ZERO; 3]);
     let mut flags = vec![0u8; triangle_count];
     let triangles = per_triangle_pass(
@@ -106,12 +110,12 @@ pub(crate) fn generate(
     let table = if has_degenerate {
         CornerTable::build_filtered(
             &corner_class,
-            weld.class_count,
+            class_count,
             |c| flags[c / 3] & DEGENERATE == 0,
             parallel,
         )
     } else {
-        CornerTable::build_filtered(&corner_class, weld.class_count, |_| true, parallel)
+        CornerTable::build_filtered(&corner_class, class_count, |_| true, parallel)
     };
 
     if cancelled() {
@@ -121,7 +125,7 @@ pub(crate) fn generate(
     let context = Context {
         mesh,
         corner_class: &corner_class,
-        classes_are_vertices: weld.class_count == mesh.vertex_count(),
+        classes_are_vertices: class_count == mesh.vertex_count(),
         contributions: &contributions,
         table: &table,
         shared: &shared,
@@ -172,7 +176,7 @@ pub(crate) fn generate(
     } else {
         let mut copies = Copies::default();
         let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
-        let piece = context.process_classes(0..weld.class_count, &flags, &degenerate, &mut put);
+        let piece = context.process_classes(0..class_count, &flags, &degenerate, &mut put);
         (vec![copies], piece.repairs, piece.touched)
     };
     if cancelled() {
