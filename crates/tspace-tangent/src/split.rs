@@ -37,6 +37,15 @@ impl SplitPlan {
         self.source_vertex.len() == vertex_count
     }
 
+    /// The plan's own index buffer, to change: made from the input's indices (as
+    /// [`SplitPlan::indices_for`] reads them) where the plan had none.
+    pub fn indices_mut(&mut self, input_indices: Option<&[u32]>) -> &mut Vec<u32> {
+        if self.indices.is_none() {
+            self.indices = Some(self.indices_for(input_indices).into_owned());
+        }
+        self.indices.get_or_insert_with(Vec::new)
+    }
+
     /// The output vertex of `corner`, for the input's indices `input_indices` (`None` where the
     /// input was a triangle list without indices), which the plan was made for.
     pub fn vertex_of(&self, corner: usize, input_indices: Option<&[u32]>) -> usize {
@@ -73,22 +82,28 @@ pub(crate) fn plan(
     let mut next_copy: Vec<u32> = vec![NONE; vertex_count];
     // Bit 0: a corner with w = +1 was seen; bit 1: w = -1.
     let mut signs = vec![0u8; vertex_count];
-    let mut out_indices = Vec::with_capacity(indices.len());
+    // Made at the first copy: until then every corner keeps its vertex, so the corners before
+    // it are the input's indices, and a plan without copies has none of its own.
+    let mut out_indices: Option<Vec<u32>> = None;
 
-    for (&v, tangent) in indices.iter().zip(corner_tangents) {
+    for (corner, (&v, tangent)) in indices.iter().zip(corner_tangents).enumerate() {
         let v = v as usize;
         let first_use = signs[v] == 0;
         signs[v] |= if tangent[3] > 0.0 { 1 } else { 2 };
         if first_use {
             vertex_tangents[v] = *tangent;
-            out_indices.push(v as u32);
+            if let Some(out) = &mut out_indices {
+                out.push(v as u32);
+            }
             continue;
         }
         let mut at = v;
         loop {
             // Float equality: -0 and 0 are the same tangent (tangents are never NaN here).
             if vertex_tangents[at] == *tangent {
-                out_indices.push(at as u32);
+                if let Some(out) = &mut out_indices {
+                    out.push(at as u32);
+                }
                 break;
             }
             if next_copy[at] == NONE {
@@ -97,7 +112,13 @@ pub(crate) fn plan(
                 vertex_tangents.push(*tangent);
                 next_copy.push(NONE);
                 next_copy[at] = copy as u32;
-                out_indices.push(copy as u32);
+                out_indices
+                    .get_or_insert_with(|| {
+                        let mut out = Vec::with_capacity(indices.len());
+                        out.extend_from_slice(&indices[..corner]);
+                        out
+                    })
+                    .push(copy as u32);
                 break;
             }
             at = next_copy[at] as usize;
@@ -131,10 +152,9 @@ pub(crate) fn plan(
     diagnostics.vertices_out = source_vertex.len() as u64;
     diagnostics.vertices_added = (source_vertex.len() - vertex_count) as u64;
 
-    let indices = (source_vertex.len() > vertex_count).then_some(out_indices);
     SplitPlan {
         source_vertex,
-        indices,
+        indices: out_indices,
         vertex_tangents,
     }
 }
@@ -178,6 +198,9 @@ mod tests {
         );
         assert_eq!(plan.vertex_of(2, Some(&[0, 0, 0])), 0);
         assert_eq!(plan.indices_for(None).as_ref(), [0, 1]);
+        let mut refined = plan.clone();
+        refined.indices_mut(Some(&[0, 0, 0]))[2] = 1;
+        assert_eq!(refined.indices, Some(vec![0, 0, 1]));
         let t = plan.vertex_tangents[1];
         assert!((t[0] * t[0] + t[1] * t[1] + t[2] * t[2] - 1.0).abs() < 1e-6 && t[2] == 0.0);
     }

@@ -120,10 +120,7 @@ pub fn paint(computed: &mut Computed, marks: &Marks) -> Painted {
     let mut appended: Vec<(u32, Class)> = Vec::new();
     let mut triangles = [0u64; 5];
     // Refining may give corners other vertices: the plan's own indices, if it had none.
-    let indices = split.indices.get_or_insert_with(|| {
-        let geometry_indices = computed.geometry.indices.as_deref();
-        geometry_indices.map_or_else(|| (0..kept as u32).collect(), <[u32]>::to_vec)
-    });
+    let indices = split.indices_mut(computed.geometry.indices.as_deref());
     for (t, corners) in indices.chunks_exact_mut(3).enumerate() {
         let class = marks
             .triangles
