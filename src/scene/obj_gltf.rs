@@ -309,6 +309,9 @@ struct MeshBuilder<'o, 'w> {
     name: Option<&'o str>,
     primitives: Vec<Primitive<'o>>,
     by_signature: HashMap<Signature<'o>, usize>,
+    /// How many triangles each primitive will have, counted in [`plan_mesh`]'s first pass, so
+    /// that its lists are made with room for them (see [`MeshBuilder::new`]).
+    expected: HashMap<Signature<'o>, usize>,
     /// Which vertex each corner already has, across the mesh's primitives.
     welded: &'w mut CornerWeld,
 }
@@ -462,12 +465,24 @@ impl std::hash::Hasher for FoldHasher {
 }
 
 impl<'o, 'w> MeshBuilder<'o, 'w> {
-    fn new(name: Option<&'o str>, welded: &'w mut CornerWeld) -> Self {
+    /// A builder for a mesh whose primitives will have `expected` triangles. Each primitive's
+    /// indices are made with room for all of its corners, and its vertices (and the weld's
+    /// entries) for one a triangle: a smooth mesh has about half that, a faceted one up to
+    /// three times. Grown from nothing, these lists were copied and faulted in again at every
+    /// doubling: on the 1M-triangle sphere of `whole_path`, a fifth of the process's page
+    /// faults (see docs/benchmarks.md). Room never touched costs no memory.
+    fn new(
+        name: Option<&'o str>,
+        welded: &'w mut CornerWeld,
+        expected: HashMap<Signature<'o>, usize>,
+    ) -> Self {
         welded.clear();
+        welded.entries.reserve(expected.values().sum());
         MeshBuilder {
             name,
             primitives: Vec::new(),
             by_signature: HashMap::new(),
+            expected,
             welded,
         }
     }
@@ -479,10 +494,11 @@ impl<'o, 'w> MeshBuilder<'o, 'w> {
         let slot = match last.filter(|&l| self.primitives[l].signature == signature) {
             Some(last) => last,
             None => *self.by_signature.entry(signature).or_insert_with(|| {
+                let triangles = self.expected.get(&signature).copied().unwrap_or(0);
                 self.primitives.push(Primitive {
                     signature,
-                    vertices: Vec::new(),
-                    indices: Vec::new(),
+                    vertices: Vec::with_capacity(triangles),
+                    indices: Vec::with_capacity(3 * triangles),
                 });
                 self.primitives.len() - 1
             }),
@@ -718,28 +734,45 @@ fn plan_mesh<'o>(
     welded: &mut CornerWeld,
 ) -> Result<Mesh<'o>, ConvertError> {
     let triangles = || {
-        groups.iter().flat_map(|g| {
-            g.triangles.iter().enumerate().map(move |(t, triangle)| {
-                let smoothing = g.smoothing.get(t).copied().unwrap_or(0);
-                (*g, triangle, smoothing)
-            })
-        })
+        groups
+            .iter()
+            .flat_map(|g| g.triangles.iter().map(move |triangle| (*g, triangle)))
     };
     let mut without_normals = Vec::new();
     let mut usable = Vec::with_capacity(groups.iter().map(|g| g.triangles.len()).sum());
-    for (_, triangle, smoothing) in triangles() {
-        check_corners(obj, triangle)?;
-        let kept = Usable::of(obj, triangle);
-        usable.push(kept);
-        // A triangle whose positions are not finite is dropped, and counted, in the second pass.
-        if kept.finite() && !kept.normal() {
-            without_normals.push((kept.keep(triangle), smoothing));
+    // Each primitive's triangles, counted by group (a hash per group, not per triangle).
+    let mut expected: HashMap<Signature<'o>, usize> = HashMap::new();
+    for group in groups {
+        let mut with_uv = [0usize; 2];
+        for (t, triangle) in group.triangles.iter().enumerate() {
+            check_corners(obj, triangle)?;
+            let kept = Usable::of(obj, triangle);
+            usable.push(kept);
+            // A triangle whose positions are not finite is dropped, and counted, in the
+            // second pass.
+            if kept.finite() {
+                with_uv[usize::from(kept.uv())] += 1;
+                if !kept.normal() {
+                    let smoothing = group.smoothing.get(t).copied().unwrap_or(0);
+                    without_normals.push((kept.keep(triangle), smoothing));
+                }
+            }
+        }
+        for (uv, count) in [(false, with_uv[0]), (true, with_uv[1])] {
+            if count > 0 {
+                let signature = Signature {
+                    material: group.material.as_deref(),
+                    uv,
+                    normal: true,
+                };
+                *expected.entry(signature).or_default() += count;
+            }
         }
     }
     let mut made = generate_missing_normals(obj, &without_normals, request, generated)?.into_iter();
     drop(without_normals);
-    let mut builder = MeshBuilder::new(name, welded);
-    for ((group, triangle, _), &kept) in triangles().zip(&usable) {
+    let mut builder = MeshBuilder::new(name, welded, expected);
+    for ((group, triangle), &kept) in triangles().zip(&usable) {
         if !kept.finite() {
             dropped.positions += 1;
             continue;

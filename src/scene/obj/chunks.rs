@@ -53,9 +53,21 @@ pub(super) fn unreadable(line: usize) -> ObjError {
     )
 }
 
+/// A chunk's first run of faces is given room for a triangle per this many bytes of the
+/// chunk's text: about what an exporter writes per triangle (a face line of three or four
+/// `v/vt/vn` corners, and its share of the vertex lines). Grown from nothing, the runs were
+/// copied and faulted in again at every doubling: on the 1M-triangle sphere of `whole_path`, a
+/// third of the process's page faults (see docs/benchmarks.md). Where the text has more
+/// triangles than that the run grows as before; where fewer, the room never touched costs no
+/// memory.
+const BYTES_PER_TRIANGLE: usize = 64;
+
 /// What a chunk's reader keeps besides [`Reader`]'s own state.
 #[derive(Default)]
 pub(super) struct ChunkState {
+    /// Triangles the next run is made with room for (see [`BYTES_PER_TRIANGLE`]); the first
+    /// run takes it all.
+    room_for_triangles: usize,
     segments: Vec<Segment>,
     /// The key fields set within the chunk so far.
     set_fields: u8,
@@ -88,6 +100,14 @@ struct Polygon {
 }
 
 impl ChunkState {
+    /// The state of a chunk of `length` bytes.
+    pub(super) fn for_length(length: usize) -> ChunkState {
+        ChunkState {
+            room_for_triangles: length / BYTES_PER_TRIANGLE,
+            ..ChunkState::default()
+        }
+    }
+
     pub(super) fn key_changed(&mut self, field: u8) {
         self.set_fields |= field;
         self.changed = true;
@@ -100,13 +120,14 @@ impl ChunkState {
         group_current: &mut bool,
     ) -> &mut FaceGroup {
         if !*group_current || self.segments.is_empty() {
+            let room = std::mem::take(&mut self.room_for_triangles);
             self.segments.push(Segment {
                 group: FaceGroup {
                     object: key.object.clone(),
                     groups: key.groups.clone(),
                     material: key.material.clone(),
-                    triangles: Vec::new(),
-                    smoothing: Vec::new(),
+                    triangles: Vec::with_capacity(room),
+                    smoothing: Vec::with_capacity(room),
                 },
                 set_fields: self.set_fields,
                 changed_before: self.changed,
@@ -237,7 +258,7 @@ pub(super) fn split_at_lines(bytes: &[u8], count: usize) -> Vec<&[u8]> {
 }
 
 fn read_chunk(bytes: &[u8], first: bool, limits: &Limits) -> Option<Chunk> {
-    let mut reader = Reader::new(limits, Some(Box::default()));
+    let mut reader = Reader::new(limits, Some(Box::new(ChunkState::for_length(bytes.len()))));
     let lines = if first {
         Lines::new(bytes)
     } else {
