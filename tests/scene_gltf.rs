@@ -1009,7 +1009,9 @@ fn unknown_extensions_and_extras_survive_and_keep_everything_in_place() {
 
 /// Written in pieces (as the command line writes), every fixture comes out as the same bytes
 /// with the same report as written whole: GLB and `.gltf` inputs, passed through, split,
-/// Draco and meshopt ones, under the default options and with everything recomputed.
+/// Draco and meshopt ones, and OBJ ones (whose pieces hold the GLB the OBJ became, and are put
+/// together here against the OBJ's text, as a caller holding only that would), under the
+/// default options and with everything recomputed.
 #[test]
 fn pieces_put_together_are_the_whole_output() {
     use tspace::scene::folder::Folder;
@@ -1031,6 +1033,7 @@ fn pieces_put_together_are_the_whole_output() {
     files.sort();
     assert!(files.len() > 20, "{} fixtures", files.len());
     let mut in_pieces = 0;
+    let mut obj_in_pieces = 0;
     for path in &files {
         let bytes = std::fs::read(path).unwrap();
         let kind = InputKind::from_file_name(&path.to_string_lossy()).unwrap();
@@ -1047,6 +1050,10 @@ fn pieces_put_together_are_the_whole_output() {
             let put_together = match (&split.pieces, &split.bytes) {
                 (Some(pieces), None) => {
                     in_pieces += 1;
+                    if kind == InputKind::Obj {
+                        assert!(pieces.hold_their_input(), "{}", path.display());
+                        obj_in_pieces += 1;
+                    }
                     pieces.to_vec(&bytes)
                 }
                 (None, Some(bytes)) => bytes.clone(),
@@ -1066,6 +1073,10 @@ fn pieces_put_together_are_the_whole_output() {
         }
     }
     assert!(in_pieces > 10, "only {in_pieces} outputs came in pieces");
+    assert!(
+        obj_in_pieces >= 4,
+        "only {obj_in_pieces} OBJ outputs came in pieces"
+    );
 }
 
 fn overwrite_all() -> SceneOptions {

@@ -213,6 +213,10 @@ fn process_one(
     let (processed, held) = process_file(file, &options)?;
     match (&processed.pieces, &held) {
         (Some(pieces), Some(bytes)) => write_with(output, |out| pieces.write_to(bytes, out))?,
+        // An OBJ's: they hold the GLB it was converted to.
+        (Some(pieces), None) if pieces.hold_their_input() => {
+            write_with(output, |out| pieces.write_to(&[], out))?
+        }
         (Some(_), None) => {
             return Err(SceneError::new(
                 ProblemCode::Internal,

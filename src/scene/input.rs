@@ -172,13 +172,9 @@ pub fn process_read_obj<'a>(
     )?;
     // The OBJ's steps, then the glTF path's.
     timings.steps.append(&mut processed.timings.steps);
-    // The pieces would refer to the GLB made here, which goes when this returns.
+    // The pieces refer to the GLB made here, which the caller does not hold: they keep it.
     if let Some(pieces) = processed.pieces.take() {
-        let assembling = std::time::Instant::now();
-        processed.bytes = Some(pieces.to_vec(&glb_bytes));
-        timings
-            .steps
-            .push(("assemble the output", assembling.elapsed()));
+        processed.pieces = Some(pieces.with_own_input(glb_bytes));
     }
     processed.timings.steps = timings.steps;
     let report = &mut processed.report;

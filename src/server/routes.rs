@@ -601,12 +601,14 @@ fn answer_parts(processed: &mut Processed, main: &Bytes) -> Result<Vec<Bytes>, P
             processed.bytes.take().unwrap_or_default(),
         )]);
     };
-    pieces
-        .into_parts()
+    let (parts, own_input) = pieces.into_parts();
+    // An OBJ's pieces refer to the GLB it was converted to, which they hold.
+    let input = own_input.map_or_else(|| main.clone(), Bytes::from);
+    parts
         .into_iter()
         .map(|part| match part {
             Part::Owned(bytes) => Ok(Bytes::from(bytes)),
-            Part::Input(range) if range.end <= main.len() => Ok(main.slice(range)),
+            Part::Input(range) if range.end <= input.len() => Ok(input.slice(range)),
             Part::Input(range) => Err(Problem::new(
                 ProblemCode::Internal,
                 format!("the written scene refers to bytes {range:?} beyond the upload"),
