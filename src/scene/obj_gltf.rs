@@ -507,8 +507,9 @@ impl<'o, 'w> MeshBuilder<'o, 'w> {
             return Ok(()); // Unreachable: `slot` was found or made above.
         };
         // By reference: iterated by value, the array was copied into the iterator a field at a
-        // time and read back in wider loads, which waited for those stores (a quarter of
-        // planning the meshes).
+        // time and read back in wider loads, which waited for those stores (in a profile, the
+        // samples of planning the meshes that sat on such a load went from 24% to 17%: the
+        // rest wait on the triangle's own corners, made a field at a time in `plan_mesh`).
         for &corner in &triangle {
             let next = to_u32(
                 "the vertex count of one primitive",
