@@ -462,8 +462,8 @@ impl<'l> std::ops::Deref for Args<'l> {
 /// Exactly `N` numbers and nothing else on the line, or `None`; with them, the text after the
 /// line (see [`line_end`]). Always inlined: called, it handed its numbers back through memory,
 /// stored one float at a time and loaded as one 16-byte value, a load the CPU cannot forward
-/// from those stores, which waited for them to reach the cache (a sixth of the time of reading
-/// the vertex lines).
+/// from those stores, which waited for them to reach the cache (a sixth of the samples of the
+/// reader's loop, see docs/benchmarks.md).
 #[inline(always)]
 fn exact_numbers<const N: usize>(mut rest: &[u8]) -> Option<([f32; N], &[u8])> {
     let mut out = [0.0; N];
