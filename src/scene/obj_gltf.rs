@@ -292,6 +292,19 @@ struct Signature<'o> {
     normal: bool,
 }
 
+impl<'o> Signature<'o> {
+    /// The primitive a triangle of `group` joins, by whether it keeps texture coordinates
+    /// (every triangle has normals by then, its own or generated). Both of [`plan_mesh`]'s
+    /// passes ask this, so that the triangles counted for a primitive are the ones it gets.
+    fn of(group: &'o FaceGroup, uv: bool) -> Signature<'o> {
+        Signature {
+            material: group.material.as_deref(),
+            uv,
+            normal: true,
+        }
+    }
+}
+
 struct Primitive<'o> {
     signature: Signature<'o>,
     /// Unique corners, in order of first use: vertex `i` is `vertices[i]`.
@@ -764,12 +777,7 @@ fn plan_mesh<'o>(
         }
         for (uv, count) in [(false, with_uv[0]), (true, with_uv[1])] {
             if count > 0 {
-                let signature = Signature {
-                    material: group.material.as_deref(),
-                    uv,
-                    normal: true,
-                };
-                *expected.entry(signature).or_default() += count;
+                *expected.entry(Signature::of(group, uv)).or_default() += count;
             }
         }
     }
@@ -788,12 +796,7 @@ fn plan_mesh<'o>(
                 *corner = corner.with_normal(made.next());
             }
         }
-        let signature = Signature {
-            material: group.material.as_deref(),
-            uv: kept.uv(),
-            normal: true,
-        };
-        builder.add(signature, triangle)?;
+        builder.add(Signature::of(group, kept.uv()), triangle)?;
     }
     Ok(builder.finish())
 }
