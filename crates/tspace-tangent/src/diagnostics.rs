@@ -127,6 +127,11 @@ pub(crate) struct TriangleCheck<'a> {
 }
 
 impl TriangleCheck<'_> {
+    /// Whether every position, normal and texture coordinate is finite.
+    pub fn all_vertices_finite(&self) -> bool {
+        self.non_finite_vertex.is_empty()
+    }
+
     /// Checks triangle `index`, whose vertices are `vertices`, positions `p` and texture
     /// coordinates `uv` (zeros without UVs).
     #[inline]

@@ -285,7 +285,7 @@ fn generate_by_triangle(
 ) -> SplitPlan {
     // Between passes, a cancelled computation stops; its caller returns nothing of it.
     let cancelled = || check.cancel.is_cancelled();
-    let weld = weld_mesh(mesh, false);
+    let weld = weld_mesh(mesh, check.all_vertices_finite(), false);
     if cancelled() {
         return SplitPlan::default();
     }
@@ -397,7 +397,7 @@ fn generate_by_vertex(
     if check.cancel.is_cancelled() {
         return SplitPlan::default();
     }
-    let weld = weld_mesh(mesh, parallel);
+    let weld = weld_mesh(mesh, check.all_vertices_finite(), parallel);
     if check.cancel.is_cancelled() {
         return SplitPlan::default();
     }

@@ -135,6 +135,7 @@ fn smooth_corner_normals(
             positions,
             normals: None,
             uvs: None,
+            finite: false,
         },
         false,
     );

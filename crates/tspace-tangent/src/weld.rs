@@ -51,11 +51,12 @@ fn canonical_bits(x: f32) -> u32 {
     (x + 0.0).to_bits()
 }
 
+/// The 128-bit product of `a` and `b`, its halves xor-ed: every bit of either factor reaches
+/// nearly every bit of the result.
 #[inline]
-fn mix(h: u64, x: u32) -> u64 {
-    (h ^ x as u64)
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .rotate_left(29)
+fn folded_product(a: u64, b: u64) -> u64 {
+    let product = a as u128 * b as u128;
+    product as u64 ^ (product >> 64) as u64
 }
 
 /// Vertex identity over position, and optionally normal and texture coordinate.
@@ -63,28 +64,31 @@ pub(crate) struct Key<'a> {
     pub positions: &'a [[f32; 3]],
     pub normals: Option<&'a [[f32; 3]]>,
     pub uvs: Option<&'a [[f32; 2]]>,
+    /// Whether every value of the key is known to be finite (the core's vertex checks found no
+    /// other), so that no vertex can hold NaN and [`Key::self_equal`] need not compare.
+    pub finite: bool,
 }
 
 impl Key<'_> {
+    /// The key's eight words in four 64-bit lanes, mixed by two independent 64 × 64 → 128-bit
+    /// multiplications and a third that joins them (wyhash's step). A chain of one
+    /// multiplication per word, as before, was a third of the weld's time on an indexed mesh:
+    /// each step waited on the one before.
     #[inline]
     fn hash(&self, v: usize) -> u64 {
-        let p = self.positions[v];
-        let mut h = mix(
-            mix(mix(0, canonical_bits(p[0])), canonical_bits(p[1])),
-            canonical_bits(p[2]),
+        let f = self.flat(v);
+        let lane = |i: usize| {
+            canonical_bits(f[2 * i]) as u64 | (canonical_bits(f[2 * i + 1]) as u64) << 32
+        };
+        let a = folded_product(
+            lane(0) ^ 0xa076_1d64_78bd_642f,
+            lane(1) ^ 0xe703_7ed1_a0b4_28db,
         );
-        if let Some(normals) = self.normals {
-            let n = normals[v];
-            h = mix(
-                mix(mix(h, canonical_bits(n[0])), canonical_bits(n[1])),
-                canonical_bits(n[2]),
-            );
-        }
-        if let Some(uvs) = self.uvs {
-            let t = uvs[v];
-            h = mix(mix(h, canonical_bits(t[0])), canonical_bits(t[1]));
-        }
-        h ^ (h >> 32)
+        let b = folded_product(
+            lane(2) ^ 0x8ebc_6af0_9c88_c6e3,
+            lane(3) ^ 0x5899_65cc_7537_4cc3,
+        );
+        folded_product(a ^ 0x1d8e_4e27_c47d_124f, b ^ 0xa076_1d64_78bd_642f)
     }
 
     /// Comparisons combined without branching, in two groups: keys that differ nearly always
@@ -119,9 +123,10 @@ impl Key<'_> {
     }
 
     /// A vertex holding NaN equals nothing, not even itself, so it never enters the table.
+    /// Known finite keys skip the comparison (on an indexed mesh, a tenth of the weld).
     #[inline]
     fn self_equal(&self, v: usize) -> bool {
-        self.equal(v, v)
+        self.finite || self.equal(v, v)
     }
 }
 
@@ -152,13 +157,25 @@ fn weld(key: &Key<'_>, mostly_repeated: bool, parallel: bool) -> Weld {
 /// the same there.
 const ONE_TABLE_MAX_BUCKETS: usize = 1 << 17;
 
-/// The number of slots of [`weld_in_one_table`]'s table: a power of two, at least 1.5 per vertex.
+/// The slots one table over `vertex_count` vertices would have at the least, which decides
+/// between one table and shards: a power of two, at least 1.5 per vertex.
 fn one_table_buckets(vertex_count: usize) -> usize {
-    let mut buckets = 16usize;
-    while buckets < vertex_count + vertex_count / 2 {
-        buckets *= 2;
-    }
-    buckets
+    table_buckets(vertex_count, false)
+}
+
+/// The slots of a table for `vertex_count` vertices, a power of two. Where most vertices are
+/// distinct, nearly every vertex takes a slot, and a table at most a third full (three slots a
+/// vertex) makes a vertex's first probe nearly always find its slot empty: at two thirds, a
+/// third of the first probes met another class, a branch the CPU could not predict (a loop of
+/// 10k-vertex welds alone about a quarter faster). Where most repeat, the classes are a
+/// fraction of the vertices and 1.5 slots a vertex leaves the table as empty.
+fn table_buckets(vertex_count: usize, mostly_distinct: bool) -> usize {
+    let slots = if mostly_distinct {
+        3 * vertex_count
+    } else {
+        vertex_count + vertex_count / 2
+    };
+    slots.next_power_of_two().max(16)
 }
 /// About this many vertices per shard: a shard's table (8 bytes a slot, 1.5 to 3 slots a
 /// vertex) then stays within a core's L2 cache.
@@ -239,10 +256,9 @@ fn first_equal_vertices(key: &Key<'_>, parallel: bool) -> Option<Vec<u32>> {
     let weld_shard = |(shard, firsts): (usize, &mut [u32])| {
         let mut welded = false;
         let vertices = by_shard.of(shard);
-        let mut buckets = 16usize;
-        while buckets < vertices.len() + vertices.len() / 2 {
-            buckets *= 2;
-        }
+        // Not the roomier table of the one-table weld: three slots a vertex made the 200k
+        // meshes, welded in shards, no faster (six interleaved rounds).
+        let buckets = table_buckets(vertices.len(), false);
         let mask = buckets - 1;
         // (first vertex, its tag); `NONE` marks an empty slot.
         let mut table = vec![(NONE, 0u32); buckets];
@@ -364,9 +380,11 @@ fn number_classes(first_of_vertex: Vec<u32>, parallel: bool) -> Weld {
 }
 
 /// How [`weld_in_one_table`] remembers each class's first vertex and compares a vertex with it.
-trait Firsts: Default {
+trait Firsts {
     /// Whether most vertices are expected to repeat, so that most find their class.
     const REPEATED: bool;
+    /// An empty record for a weld of `vertex_count` vertices.
+    fn for_vertices(vertex_count: usize) -> Self;
     /// Records vertex `v` as the first of the next class.
     fn add(&mut self, key: &Key<'_>, v: usize);
     /// Whether vertex `v` equals the first vertex of `class`.
@@ -377,11 +395,16 @@ trait Firsts: Default {
 
 /// The first vertex's index: comparing reads its attributes from the mesh. For meshes whose
 /// vertices are mostly distinct, where few comparisons are made.
-#[derive(Default)]
 struct FirstVertices(Vec<u32>);
 
 impl Firsts for FirstVertices {
     const REPEATED: bool = false;
+
+    /// Room for a class per vertex, which is what such a mesh has: grown by doubling, the list
+    /// was copied a dozen times.
+    fn for_vertices(vertex_count: usize) -> Self {
+        FirstVertices(Vec::with_capacity(vertex_count))
+    }
 
     #[inline]
     fn add(&mut self, _: &Key<'_>, v: usize) {
@@ -402,11 +425,15 @@ impl Firsts for FirstVertices {
 /// there nearly every vertex is compared with the first of its class, and the copies in one
 /// array make that read one cache line instead of one per attribute array. Where vertices are
 /// mostly distinct, writing the copies costs more than it saves.
-#[derive(Default)]
 struct FirstKeys(Vec<[f32; 8]>);
 
 impl Firsts for FirstKeys {
     const REPEATED: bool = true;
+
+    /// Grown as classes come: a soup has a fraction as many classes as vertices.
+    fn for_vertices(_: usize) -> Self {
+        FirstKeys(Vec::new())
+    }
 
     #[inline]
     fn add(&mut self, key: &Key<'_>, v: usize) {
@@ -431,13 +458,17 @@ impl Firsts for FirstKeys {
 /// One hash table over all the vertices: for meshes small enough that it stays in cache.
 fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
     let vertex_count = key.positions.len();
-    let buckets = one_table_buckets(vertex_count);
+    // Within the limit on one table's size (the choice of one table was made at 1.5 slots a
+    // vertex), so that it stays in cache.
+    let buckets = table_buckets(vertex_count, !F::REPEATED)
+        .min(ONE_TABLE_MAX_BUCKETS)
+        .max(one_table_buckets(vertex_count));
     let mask = buckets - 1;
     // Each slot holds a class and the high half of its first vertex's hash (its tag): a probe
     // that meets another class is then nearly always decided by the tags, without reading
     // that class's vertex from wherever it lies in the mesh (a cache miss in most collisions).
     let mut table = vec![(NONE, 0u32); buckets];
-    let mut firsts = F::default();
+    let mut firsts = F::for_vertices(vertex_count);
     let mut class_of_vertex = Vec::with_capacity(vertex_count);
     let mut class_count = 0u32;
     // Hash a block of vertices first and prefetch their buckets: the misses overlap, where the
@@ -497,7 +528,8 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>) -> Weld {
 }
 
 /// Welds the vertices MikkTSpace would weld: equal position, normal and texture coordinate.
-pub(crate) fn weld_mesh(mesh: &Mesh<'_>, parallel: bool) -> Weld {
+/// `finite`: the core's vertex checks found no non-finite value in the mesh.
+pub(crate) fn weld_mesh(mesh: &Mesh<'_>, finite: bool, parallel: bool) -> Weld {
     // About one vertex per corner (a triangle soup, or an index buffer that does not share):
     // most vertices are then copies; a mesh whose corners share vertices has few.
     let mostly_repeated = mesh.indices.len() < 2 * mesh.vertex_count();
@@ -506,6 +538,7 @@ pub(crate) fn weld_mesh(mesh: &Mesh<'_>, parallel: bool) -> Weld {
             positions: mesh.positions,
             normals: Some(mesh.normals),
             uvs: mesh.uvs,
+            finite,
         },
         mostly_repeated,
         parallel,
@@ -707,6 +740,7 @@ mod tests {
             positions,
             normals: None,
             uvs: Some(uvs),
+            finite: false,
         };
         weld_vertices(&key, false)
     }
@@ -773,6 +807,7 @@ mod tests {
             positions: &positions,
             normals: None,
             uvs: Some(&uvs),
+            finite: false,
         };
         let expected = weld_in_one_table::<FirstVertices>(&key);
         assert!(
@@ -797,6 +832,53 @@ mod tests {
         }
     }
 
+    /// Keys known to be finite skip the test for NaN, and weld as keys tested vertex by vertex,
+    /// in one table of either kind and in shards.
+    #[test]
+    fn finite_keys_weld_as_tested_keys() {
+        let count = SHARD_VERTICES * 3 + 5;
+        let mut random = crate::test_support::xorshift(0x6a09_e667_f3bc_c908);
+        let mut positions: Vec<[f32; 3]> = Vec::with_capacity(count);
+        let mut normals: Vec<[f32; 3]> = Vec::with_capacity(count);
+        for v in 0..count {
+            let r = random();
+            let (p, n) = if r % 4 == 0 && v > 0 {
+                let earlier = (r >> 8) as usize % v;
+                (positions[earlier], normals[earlier])
+            } else {
+                let p = [(r % 61) as f32, ((r >> 16) % 53) as f32, -0.0];
+                (p, [0.0, 0.0, ((r >> 32) % 2) as f32])
+            };
+            positions.push(p);
+            normals.push(n);
+        }
+        let tested = Key {
+            positions: &positions,
+            normals: Some(&normals),
+            uvs: None,
+            finite: false,
+        };
+        let finite = Key {
+            finite: true,
+            ..tested
+        };
+        let expected = weld_in_one_table::<FirstVertices>(&tested);
+        assert!(
+            expected.class_count < count * 9 / 10,
+            "the test should weld"
+        );
+        let welds = [
+            weld_in_one_table::<FirstVertices>(&finite),
+            weld_in_one_table::<FirstKeys>(&finite),
+            weld_in_shards(&finite, false),
+            weld_in_shards(&finite, true),
+        ];
+        for weld in welds {
+            assert_eq!(weld.class_count, expected.class_count);
+            assert!(weld.class_of_vertex == expected.class_of_vertex);
+        }
+    }
+
     /// Where no two vertices are equal (copies of a NaN vertex equal nothing either), the
     /// sharded weld gives every vertex its own class, as one table does.
     #[test]
@@ -815,6 +897,7 @@ mod tests {
             positions: &positions,
             normals: None,
             uvs: None,
+            finite: false,
         };
         let expected = weld_in_one_table::<FirstVertices>(&key);
         assert_eq!(expected.class_count, count);

@@ -76,7 +76,7 @@ pub(crate) fn generate(
     diagnostics: &mut Diagnostics,
 ) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
-    let weld = weld_mesh(mesh, parallel);
+    let weld = weld_mesh(mesh, check.all_vertices_finite(), parallel);
     // Between passes, a cancelled computation stops; its caller returns nothing of it.
     let cancelled = || check.cancel.is_cancelled();
     if cancelled() {
