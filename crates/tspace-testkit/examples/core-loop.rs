@@ -1,0 +1,93 @@
+//! Runs the tangent core on one mesh in a loop, for a profiler to sample:
+//!
+//! ```sh
+//! cargo build --release -p tspace-testkit --example core-loop
+//! perf record -e cpu-clock -F 10000 -g target/release/examples/core-loop \
+//!     ../shared/corpus/gltf_SciFiHelmet_no_images/SciFiHelmet.gltf 5
+//! ```
+//!
+//! Arguments: a glTF/GLB file (every triangle primitive with normals and texture coordinates,
+//! concatenated as the `tangents` bench does) or `sphere:N` / `torus:N` for a generated shape of
+//! about N triangles; then the seconds to run (default 3). Prints the median time of a call.
+
+use std::time::Instant;
+use tspace_tangent::{MeshInput, Options, generate};
+
+struct Mesh {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    uvs: Vec<[f32; 2]>,
+    indices: Vec<u32>,
+}
+
+fn load(what: &str) -> Result<Mesh, String> {
+    if let Some((kind, size)) = what.split_once(':') {
+        let triangles: usize = size.parse().map_err(|e| format!("{what}: {e}"))?;
+        let [sphere, torus] = tspace_testkit::shapes::shapes_of_size(triangles);
+        let shape = match kind {
+            "sphere" => sphere,
+            "torus" => torus,
+            _ => return Err(format!("{what}: not sphere:N or torus:N")),
+        };
+        return Ok(Mesh {
+            positions: shape.positions,
+            normals: shape.normals,
+            uvs: shape.uvs,
+            indices: shape.indices,
+        });
+    }
+    let mut mesh = Mesh {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        uvs: Vec::new(),
+        indices: Vec::new(),
+    };
+    for primitive in tspace_testkit::meshes::load_gltf(std::path::Path::new(what))? {
+        let (Some(normals), Some(uvs)) = (primitive.normals, primitive.uvs) else {
+            continue;
+        };
+        let base = mesh.positions.len() as u32;
+        mesh.positions.extend(primitive.positions);
+        mesh.normals.extend(normals);
+        mesh.uvs.extend(uvs);
+        mesh.indices
+            .extend(primitive.indices.iter().map(|i| i + base));
+    }
+    Ok(mesh)
+}
+
+fn main() -> Result<(), String> {
+    let mut args = std::env::args().skip(1);
+    let what = args
+        .next()
+        .ok_or("usage: core-loop FILE|sphere:N|torus:N [SECONDS]")?;
+    let seconds: f64 = args
+        .next()
+        .map_or(Ok(3.0), |s| s.parse().map_err(|e| format!("{e}")))?;
+    let mesh = load(&what)?;
+    let input = MeshInput {
+        positions: &mesh.positions,
+        normals: Some(&mesh.normals),
+        uvs: Some(&mesh.uvs),
+        indices: Some(&mesh.indices),
+    };
+    let options = Options::default();
+    let mut times = Vec::new();
+    let start = Instant::now();
+    while start.elapsed().as_secs_f64() < seconds {
+        let t = Instant::now();
+        let result = generate(&input, &options).map_err(|e| e.to_string())?;
+        times.push(t.elapsed().as_secs_f64());
+        std::hint::black_box(result);
+    }
+    times.sort_by(f64::total_cmp);
+    println!(
+        "{what}: {} triangles, {} vertices, {} calls, median {:.3} ms, best {:.3} ms",
+        mesh.indices.len() / 3,
+        mesh.positions.len(),
+        times.len(),
+        times[times.len() / 2] * 1e3,
+        times[0] * 1e3
+    );
+    Ok(())
+}
