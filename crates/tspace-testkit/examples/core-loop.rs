@@ -9,6 +9,10 @@
 //! Arguments: a glTF/GLB file (every triangle primitive with normals and texture coordinates,
 //! concatenated as the `tangents` bench does) or `sphere:N` / `torus:N` for a generated shape of
 //! about N triangles; then the seconds to run (default 3). Prints the median time of a call.
+//!
+//! The `tangents` bench fixes glibc's allocator thresholds so that every call reuses the last
+//! one's memory; to profile the core as the bench measures it, run this with
+//! `GLIBC_TUNABLES=glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=2147483647`.
 
 use std::time::Instant;
 use tspace_tangent::{MeshInput, Options, generate};
