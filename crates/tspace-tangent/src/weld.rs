@@ -550,35 +550,57 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>, salts: [u32; 8]) -> Weld {
         .min(ONE_TABLE_MAX_BUCKETS)
         .max(one_table_buckets(vertex_count));
     let mask = buckets - 1;
-    // Each slot holds a class and the high half of its first vertex's hash (its tag): a probe
-    // that meets another class is then nearly always decided by the tags, without reading
-    // that class's vertex from wherever it lies in the mesh (a cache miss in most collisions).
+    // Each slot holds a class and its first vertex's hash (its tag): a probe that meets another
+    // class is then nearly always decided by the tags, without reading that class's vertex
+    // from wherever it lies in the mesh (a cache miss in most collisions).
     let mut table = vec![(NONE, 0u32); buckets];
     let mut firsts = F::for_vertices(vertex_count);
     let mut class_of_vertex = Vec::with_capacity(vertex_count);
     let mut class_count = 0u32;
-    // Hash a block of vertices first and prefetch their buckets: the misses overlap, where the
-    // insertion loop below would wait for one at a time. (A prefetch rather than a load, which
-    // when it misses holds up everything after it until it arrives.)
+    // Three stages over blocks of vertices, each a block ahead of the next, so that a block's
+    // misses overlap the work on the blocks before it instead of holding up its own: (1) hash
+    // the block and prefetch its home slots; (2) where most vertices repeat, read those slots
+    // and prefetch the first key of the class each holds, the one the vertex will most likely
+    // be compared with; (3) probe and insert. (Prefetches rather than loads: a load that
+    // misses holds up everything after it until it arrives.) With one block in flight, the
+    // loads of stages 2 and 3 came right after the prefetches they waited on.
     const BLOCK: usize = HASH_BLOCK;
-    let mut home = [(0usize, 0u32); BLOCK];
+    let block_count = vertex_count.div_ceil(BLOCK);
+    let block_of = |b: usize| b * BLOCK..((b + 1) * BLOCK).min(vertex_count);
+    let mut homes = [[(0usize, 0u32); BLOCK]; 3];
     let mut hashes = BlockHashes::with_salts(salts);
-    for block_start in (0..vertex_count).step_by(BLOCK) {
-        let block = block_start..(block_start + BLOCK).min(vertex_count);
+    let mut hash_block = |b: usize, home: &mut [(usize, u32); BLOCK], table: &[(u32, u32)]| {
         // The whole hash is the tag (the slot is its low bits, but a probe moves on from there).
-        for (&hash, (slot, tag)) in hashes.of_block(key, block_start).iter().zip(&mut home) {
+        for (&hash, (slot, tag)) in hashes.of_block(key, b * BLOCK).iter().zip(home) {
             (*slot, *tag) = (hash as usize & mask, hash);
             prefetch(&table[*slot]);
         }
-        // Where most vertices repeat, most home slots already hold the class they will be
-        // compared with: ask for its first key too, while the slots' misses are under way.
-        for &(slot, _) in &home[..block.len()] {
-            let (class, _) = table[slot];
-            if class != NONE {
-                firsts.prefetch(class);
+    };
+    let ask_for_firsts =
+        |b: usize, home: &[(usize, u32); BLOCK], table: &[(u32, u32)], firsts: &F| {
+            if F::REPEATED {
+                for &(slot, _) in &home[..block_of(b).len()] {
+                    let (class, _) = table[slot];
+                    if class != NONE {
+                        firsts.prefetch(class);
+                    }
+                }
             }
+        };
+    for (b, home) in homes.iter_mut().enumerate().take(block_count.min(2)) {
+        hash_block(b, home, &table);
+    }
+    if block_count > 0 {
+        ask_for_firsts(0, &homes[0], &table, &firsts);
+    }
+    for b in 0..block_count {
+        if b + 2 < block_count {
+            hash_block(b + 2, &mut homes[(b + 2) % 3], &table);
         }
-        for (v, &(mut slot, tag)) in block.zip(&home) {
+        if b + 1 < block_count {
+            ask_for_firsts(b + 1, &homes[(b + 1) % 3], &table, &firsts);
+        }
+        for (v, &(mut slot, tag)) in block_of(b).zip(&homes[b % 3]) {
             // A vertex holding NaN equals no class, and gets a class of its own but no slot.
             // Where most vertices are new, it is told apart before probing, from its key just
             // hashed, as before; where most repeat, only where it would take a new slot, since
@@ -1049,6 +1071,61 @@ mod tests {
         for (a, b) in welds(salts()).into_iter().zip(welds(other)) {
             assert_eq!(a.class_count, b.class_count);
             assert!(a.class_of_vertex == b.class_of_vertex);
+        }
+    }
+
+    /// The one-table welds, whose stages run blocks ahead of one another, against a weld by a
+    /// map of the keys' bits, over counts around the blocks' edges (none, one, two and three
+    /// blocks, whole and not).
+    #[test]
+    fn one_table_welds_match_a_map_at_every_block_count() {
+        let mut random = crate::test_support::xorshift(0x3c6e_f372_fe94_f82b);
+        for count in [0, 1, 2, 31, 32, 33, 63, 64, 65, 95, 96, 97, 200] {
+            let mut positions: Vec<[f32; 3]> = Vec::with_capacity(count);
+            let mut uvs: Vec<[f32; 2]> = Vec::with_capacity(count);
+            for v in 0..count {
+                let r = random();
+                let (p, t) = match r % 6 {
+                    0 | 1 if v > 0 => {
+                        let earlier = (r >> 8) as usize % v;
+                        (positions[earlier], uvs[earlier])
+                    }
+                    2 => ([f32::NAN, 0.0, 0.0], [0.0, 0.0]),
+                    3 => ([-0.0, (r % 3) as f32, 0.0], [0.0, 0.0]),
+                    _ => ([(r % 7) as f32, 0.0, 0.0], [((r >> 9) % 2) as f32, 0.0]),
+                };
+                positions.push(p);
+                uvs.push(t);
+            }
+            let mut by_bits = std::collections::HashMap::new();
+            let mut expected = Vec::with_capacity(count);
+            let mut classes = 0u32;
+            for (p, t) in positions.iter().zip(&uvs) {
+                let words = [p[0], p[1], p[2], t[0], t[1]];
+                if words.iter().any(|x| x.is_nan()) {
+                    expected.push(classes);
+                    classes += 1;
+                    continue;
+                }
+                let bits = words.map(canonical_bits);
+                expected.push(*by_bits.entry(bits).or_insert_with(|| {
+                    classes += 1;
+                    classes - 1
+                }));
+            }
+            let key = Key {
+                positions: &positions,
+                normals: None,
+                uvs: Some(&uvs),
+                finite: false,
+            };
+            for weld in [
+                weld_in_one_table::<FirstVertices>(&key, salts()),
+                weld_in_one_table::<FirstKeys>(&key, salts()),
+            ] {
+                assert_eq!(weld.class_count, classes as usize, "{count} vertices");
+                assert!(weld.class_of_vertex == expected, "{count} vertices");
+            }
         }
     }
 
