@@ -6,7 +6,7 @@
 use super::Weighting;
 use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck};
 use super::fallback::{self, Problem};
-use super::fill::filled;
+use super::fill::{Zeroable, zeroed};
 use super::math::{
     Mesh, cross, dot, encode, is_finite3, length, normalize_or_zero, normalize_or_zero_branchless,
     same_position, scale, sub,
@@ -29,6 +29,9 @@ struct Face {
     /// The weight of each corner: its angle (angle weighting) or twice the triangle's area.
     weights: [f32; 3],
 }
+
+// SAFETY: floats only; zero bytes are `Face::default()`.
+unsafe impl Zeroable for Face {}
 
 /// arccos to within 7e-5 rad (Abramowitz and Stegun 4.4.45). Weights need no more, and this is
 /// a few multiplications where the exact one (as MikkTSpace must use) costs a libm call.
@@ -382,7 +385,8 @@ fn generate_by_vertex(
 ) -> SplitPlan {
     let parallel = true;
     let triangle_count = mesh.triangle_count();
-    let mut faces = filled(triangle_count, parallel, Face::default);
+    // Written in order, by the triangle pass, for every triangle.
+    let mut faces = zeroed::<Face>(triangle_count);
     let triangles = per_triangle_pass(
         mesh,
         check,

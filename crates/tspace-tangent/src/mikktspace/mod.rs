@@ -38,7 +38,7 @@
 use super::acos::acos_slice;
 use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck};
 use super::fallback::{self, Problem};
-use super::fill::filled;
+use super::fill::{Zeroable, zeroed};
 use super::math::{
     Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero,
     normalize_or_zero_branchless, not_zero, reject, same_position, scale, sub,
@@ -89,7 +89,8 @@ pub(crate) fn generate(
     // made (4 bytes a vertex off the peak).
     let class_count = weld.class_count;
     drop(weld);
-    let mut contributions = filled(triangle_count, parallel, || [Contribution::ZERO; 3]);
+    // Written in order, by the triangle pass, for every triangle.
+    let mut contributions = zeroed::<[Contribution; 3]>(triangle_count);
     let mut flags = vec![0u8; triangle_count];
     let triangles = per_triangle_pass(
         mesh,
@@ -380,6 +381,9 @@ fn store_contributions_portable(
 }
 
 const _: () = assert!(std::mem::size_of::<Contribution>() == 16 && BATCH % 8 == 0);
+
+// SAFETY: floats and bytes, without padding; zero bytes are `Contribution::ZERO`.
+unsafe impl Zeroable for Contribution {}
 
 /// [`store_contributions`] with AVX2.
 #[cfg(target_arch = "x86_64")]
