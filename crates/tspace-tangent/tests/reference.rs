@@ -121,6 +121,55 @@ fn torus(u: f32, v: f32) -> ([f32; 3], [f32; 3]) {
     (position, normal)
 }
 
+/// Flat discs, each a fan of `n` triangles around its centre, whose UVs go `m` times around
+/// the centre's: the triangles' frames turn `m - 1` times around it, so that at the centre
+/// they spread over every direction, in one group. Where `m` is even and `n` too, opposite
+/// rim points are exact negatives with equal UVs, so that opposite triangles have exactly
+/// opposite frames, and the reference may split the centre into sub-groups.
+fn twisted_discs() -> Mesh {
+    let mut mesh = Mesh {
+        name: "twisted discs",
+        positions: Vec::new(),
+        normals: Vec::new(),
+        uvs: Vec::new(),
+        indices: Vec::new(),
+    };
+    let mut offset = 0.0f32;
+    for (n, m) in [
+        (8u32, 2u32),
+        (12, 2),
+        (13, 2),
+        (12, 3),
+        (16, 4),
+        (11, 5),
+        (24, 2),
+    ] {
+        let centre = mesh.positions.len() as u32;
+        mesh.positions.push([offset, 0.0, 0.0]);
+        mesh.uvs.push([0.5, 0.5]);
+        let half = n / 2;
+        for i in 0..n {
+            use std::f32::consts::TAU;
+            let angle = TAU * i as f32 / n as f32;
+            let (mut x, mut y) = (angle.cos(), angle.sin());
+            if n % 2 == 0 && i >= half {
+                // The exact negative of the point half a turn before.
+                let earlier = TAU * (i - half) as f32 / n as f32;
+                (x, y) = (-earlier.cos(), -earlier.sin());
+            }
+            mesh.positions.push([offset + x, y, 0.0]);
+            let uv_angle = TAU * ((i * m) % n) as f32 / n as f32;
+            mesh.uvs
+                .push([0.5 + 0.4 * uv_angle.cos(), 0.5 + 0.4 * uv_angle.sin()]);
+            mesh.indices
+                .extend([centre, centre + 1 + i, centre + 1 + (i + 1) % n]);
+        }
+        offset += 3.0;
+    }
+    mesh.normals = vec![[0.0, 0.0, 1.0]; mesh.positions.len()];
+    mesh
+}
+
 /// A torus, the same torus with mirrored UVs, a bumpy sheet, and the sheet with its triangles
 /// shuffled, some corners moved onto their neighbours (degenerate triangles) and some UVs
 /// collapsed: the cases where welding, grouping and the fallbacks matter.
@@ -163,6 +212,7 @@ fn meshes() -> Vec<Mesh> {
         grid("mirrored torus", 64, 32, [-4.0, 1.0], torus),
         grid("bumpy sheet", 50, 50, [1.0, 1.0], bumpy),
         damaged,
+        twisted_discs(),
     ]
 }
 

@@ -580,18 +580,63 @@ impl Context<'_> {
     /// A corner's contribution with the values it was made from, computed again exactly as
     /// the triangle pass did (the same functions, and the arccosine the batched one matches).
     fn exact_member(&self, corner: usize) -> Member {
-        let triangle = self.mesh.triangle(corner / 3);
-        let p = triangle.map(|v| self.mesh.positions[v]);
-        let uv = triangle.map(|v| self.mesh.uv(v));
-        let (frame, _) = triangle_frame(&p, &uv);
-        let normal = self.mesh.normals[self.mesh.indices[corner] as usize];
-        let (s, t, cos) = corner_arithmetic(&p, corner % 3, &frame, normal);
+        let (s, t, cos) = self.exact_corner(corner);
         Member {
             s,
             t,
             angle: (cos as f64).acos() as f32,
             any: false,
         }
+    }
+
+    /// [`corner_arithmetic`] for one corner, from the mesh.
+    fn exact_corner(&self, corner: usize) -> ([f32; 3], [f32; 3], f32) {
+        let triangle = self.mesh.triangle(corner / 3);
+        let p = triangle.map(|v| self.mesh.positions[v]);
+        let uv = triangle.map(|v| self.mesh.uv(v));
+        let (frame, _) = triangle_frame(&p, &uv);
+        let normal = self.mesh.normals[self.mesh.indices[corner] as usize];
+        corner_arithmetic(&p, corner % 3, &frame, normal)
+    }
+
+    /// The one-group sum for a vertex whose frames spread too widely for the records' test
+    /// (hard-surface meshes with smoothed normals: SciFiHelmet has about a hundred such
+    /// vertices, each of which took the general path, its exact members and its O(k²) sub-group
+    /// search, at about 2 µs a vertex). The reference puts two corners in different sub-groups
+    /// only if their exact frames fail its similarity test; this runs that test, on the exact
+    /// frames, for every pair. If every pair passes, every corner's sub-group is the whole
+    /// group, and its tangent the records' sum in ascending order, as in the shortcut. `None`
+    /// if any pair fails (including on NaN), for the general path to decide.
+    fn sum_unless_frames_oppose(
+        &self,
+        corners: &[u32],
+        records: &[Contribution],
+    ) -> Option<[f32; 3]> {
+        const MAX: usize = 32;
+        if corners.len() > MAX {
+            return None;
+        }
+        let mut frames = [([0.0f32; 3], [0.0f32; 3]); MAX];
+        for (frame, &corner) in frames.iter_mut().zip(corners) {
+            let (s, t, _) = self.exact_corner(corner as usize);
+            *frame = (s, normalize_or_zero(t));
+        }
+        let frames = &frames[..corners.len()];
+        for (a, &(sa, ta)) in frames.iter().enumerate() {
+            for (b, &(sb, tb)) in frames.iter().enumerate().skip(a + 1) {
+                // As `evaluate_group` compares members (no corner here groups with anything).
+                let same_face = corners[a] / 3 == corners[b] / 3;
+                if !(same_face || (dot(sa, sb) > -1.0 && dot(ta, tb) > -1.0)) {
+                    return None;
+                }
+            }
+        }
+        // The order and operations of `sum_of_one_group`.
+        Some(
+            records
+                .iter()
+                .fold([0.0f32; 3], |sum, record| add(sum, record.weighted_s)),
+        )
     }
 
     /// Groups and evaluates the vertices `classes`, except those touching "group with anything"
@@ -700,7 +745,9 @@ impl Context<'_> {
             return false;
         }
 
-        let Some(sum) = sum_of_one_group(records, k) else {
+        let Some(sum) = sum_of_one_group(records, k)
+            .or_else(|| self.sum_unless_frames_oppose(corners, &records[..k]))
+        else {
             return false;
         };
         let raw = encode(normalize_or_zero(sum), orientation != 0);
