@@ -602,7 +602,7 @@ impl Context<'_> {
     /// The one-group sum for a vertex whose frames spread too widely for the records' test
     /// (hard-surface meshes with smoothed normals: SciFiHelmet has about a hundred such
     /// vertices, each of which took the general path, its exact members and its O(k²) sub-group
-    /// search, at about 2 µs a vertex). The reference puts two corners in different sub-groups
+    /// search, at about 1 µs a vertex). The reference puts two corners in different sub-groups
     /// only if their exact frames fail its similarity test; this runs that test, on the exact
     /// frames, for every pair. If every pair passes, every corner's sub-group is the whole
     /// group, and its tangent the records' sum in ascending order, as in the shortcut. `None`
