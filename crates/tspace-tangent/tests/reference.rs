@@ -123,9 +123,10 @@ fn torus(u: f32, v: f32) -> ([f32; 3], [f32; 3]) {
 
 /// Flat discs, each a fan of `n` triangles around its centre, whose UVs go `m` times around
 /// the centre's: the triangles' frames turn `m - 1` times around it, so that at the centre
-/// they spread over every direction, in one group. Where `m` is even and `n` too, opposite
-/// rim points are exact negatives with equal UVs, so that opposite triangles have exactly
-/// opposite frames, and the reference may split the centre into sub-groups.
+/// they spread over every direction, in one group. Where `n` is even, opposite rim points are
+/// exact negatives; where `m` is even too, they also have equal UVs, so that opposite
+/// triangles have exactly opposite frames, and the reference may split the centre into
+/// sub-groups.
 fn twisted_discs() -> Mesh {
     let mut mesh = Mesh {
         name: "twisted discs",
@@ -170,9 +171,10 @@ fn twisted_discs() -> Mesh {
     mesh
 }
 
-/// A torus, the same torus with mirrored UVs, a bumpy sheet, and the sheet with its triangles
+/// A torus, the same torus with mirrored UVs, a bumpy sheet, the sheet with its triangles
 /// shuffled, some corners moved onto their neighbours (degenerate triangles) and some UVs
-/// collapsed: the cases where welding, grouping and the fallbacks matter.
+/// collapsed, and the twisted discs: the cases where welding, grouping, sub-groups and the
+/// fallbacks matter.
 fn meshes() -> Vec<Mesh> {
     let bumpy = |u: f32, v: f32| {
         let z = (u * 9.0).sin() * (v * 7.0).cos() * 0.2;
