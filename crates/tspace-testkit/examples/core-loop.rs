@@ -8,7 +8,8 @@
 //!
 //! Arguments: a glTF/GLB file (every triangle primitive with normals and texture coordinates,
 //! concatenated as the `tangents` bench does) or `sphere:N` / `torus:N` for a generated shape of
-//! about N triangles; then the seconds to run (default 3). Prints the median time of a call.
+//! about N triangles; then the seconds to run (default 3); then `parallel` to spread each call
+//! over the rayon pool (`RAYON_NUM_THREADS` sets its size). Prints the median time of a call.
 //!
 //! The `tangents` bench fixes glibc's allocator thresholds so that every call reuses the last
 //! one's memory; to profile the core as the bench measures it, run this with
@@ -64,10 +65,15 @@ fn main() -> Result<(), String> {
     let mut args = std::env::args().skip(1);
     let what = args
         .next()
-        .ok_or("usage: core-loop FILE|sphere:N|torus:N [SECONDS]")?;
+        .ok_or("usage: core-loop FILE|sphere:N|torus:N [SECONDS] [parallel]")?;
     let seconds: f64 = args
         .next()
         .map_or(Ok(3.0), |s| s.parse().map_err(|e| format!("{e}")))?;
+    let parallel = match args.next().as_deref() {
+        None => false,
+        Some("parallel") => true,
+        Some(other) => return Err(format!("{other}: not `parallel`")),
+    };
     let mesh = load(&what)?;
     let input = MeshInput {
         positions: &mesh.positions,
@@ -75,7 +81,10 @@ fn main() -> Result<(), String> {
         uvs: Some(&mesh.uvs),
         indices: Some(&mesh.indices),
     };
-    let options = Options::default();
+    let options = Options {
+        parallel,
+        ..Options::default()
+    };
     let mut times = Vec::new();
     let start = Instant::now();
     while start.elapsed().as_secs_f64() < seconds {
