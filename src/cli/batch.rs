@@ -6,6 +6,7 @@ use super::paths::{self, Destination, Found, Input, io_message};
 use super::progress::Progress;
 use super::stdio::{self, is_dash, output_name};
 use super::tally::{self, Tally};
+use super::writeback;
 use super::{AnalyzeArgs, Exit, ProcessArgs, RunArgs, usage_error};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::folder::Folder;
@@ -146,7 +147,7 @@ fn read_file(path: &Path, length: u64) -> std::io::Result<FileBytes> {
 /// or pipe, and as root `--report /dev/null` replaced the machine's `/dev/null` with a file.
 fn write_atomically(
     path: &Path,
-    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+    write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
     if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
         let mut special = std::fs::OpenOptions::new().write(true).open(path)?;
@@ -160,8 +161,7 @@ fn write_atomically(
     name.push(format!(".tspace-tmp-{}", std::process::id()));
     let temporary = path.with_file_name(name);
     let result = std::fs::File::create(&temporary)
-        .and_then(|mut file| write(&mut file))
-        .and_then(|()| std::fs::rename(&temporary, path));
+        .and_then(|file| writeback::write_then(file, write, || std::fs::rename(&temporary, path)));
     if result.is_err() {
         let _ = std::fs::remove_file(&temporary);
     }

@@ -13,6 +13,7 @@ mod picture;
 mod progress;
 mod stdio;
 mod tally;
+mod writeback;
 
 use crate::config::ServeArgs;
 use crate::scene::options::Choices;

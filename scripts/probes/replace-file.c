@@ -1,0 +1,100 @@
+/* What replacing a large output costs on this machine's file system, as `tspace process` does
+ * it: write a temporary file in 8 MiB writes, then rename it over the previous output. MODE 0
+ * does just that; MODE 1 also has a second thread start the writeback of each 8 MiB as soon as
+ * it is written (sync_file_range), so that the rename has no dirty pages left to flush; MODE 2
+ * holds the previous output open across the rename and times its close (where its blocks are
+ * freed). Run it in a directory on the file system to measure; it writes DIR/replace-probe.out.
+ * docs/benchmarks.md, "The whole process on this machine", quotes it.
+ *
+ *     gcc -O2 -pthread -o /tmp/replace-file scripts/probes/replace-file.c
+ *     for i in 1 2 3; do for m in 0 1 2; do /tmp/replace-file target/tmp $m; done; done
+ */
+#define _GNU_SOURCE
+#include <fcntl.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#define CHUNK (8 << 20)
+#define SIZE (72 << 20)
+
+static int fd;
+static atomic_long written;
+static atomic_int finished;
+
+static double now(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec + t.tv_nsec * 1e-9;
+}
+
+static void *start_writeback(void *unused) {
+    (void)unused;
+    long started = 0;
+    for (;;) {
+        long upto = atomic_load(&written);
+        if (upto > started) {
+            sync_file_range(fd, started, upto - started, SYNC_FILE_RANGE_WRITE);
+            started = upto;
+        } else if (atomic_load(&finished)) {
+            return NULL;
+        } else {
+            usleep(200);
+        }
+    }
+}
+
+int main(int argc, char **argv) {
+    if (argc != 3) {
+        fprintf(stderr, "usage: %s DIR MODE(0|1|2)\n", argv[0]);
+        return 2;
+    }
+    int mode = atoi(argv[2]);
+    char temporary[4096], output[4096];
+    snprintf(temporary, sizeof temporary, "%s/.replace-probe.tmp", argv[1]);
+    snprintf(output, sizeof output, "%s/replace-probe.out", argv[1]);
+    char *data = malloc(SIZE);
+    memset(data, 7, SIZE);
+    double start = now();
+    fd = open(temporary, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) {
+        perror(temporary);
+        return 1;
+    }
+    pthread_t helper;
+    if (mode == 1) {
+        pthread_create(&helper, NULL, start_writeback, NULL);
+    }
+    for (long at = 0; at < SIZE; at += CHUNK) {
+        if (write(fd, data + at, CHUNK) != CHUNK) {
+            perror("write");
+            return 1;
+        }
+        atomic_store(&written, at + CHUNK);
+    }
+    atomic_store(&finished, 1);
+    double wrote = now();
+    if (mode == 1) {
+        pthread_join(helper, NULL);
+    }
+    close(fd);
+    int previous = mode == 2 ? open(output, O_RDONLY) : -1;
+    double before_rename = now();
+    if (rename(temporary, output) != 0) {
+        perror("rename");
+        return 1;
+    }
+    double renamed = now();
+    if (previous >= 0) {
+        close(previous);
+    }
+    double closed = now();
+    printf("mode %d: write %.1f ms, rename %.1f ms, previous output closed %.1f ms, total %.1f ms\n",
+           mode, (wrote - start) * 1e3, (renamed - before_rename) * 1e3, (closed - renamed) * 1e3,
+           (closed - start) * 1e3);
+    return 0;
+}
