@@ -21,7 +21,6 @@
 //! ratios are the issue's: above 1 is tspace ahead, except the scene layer's share of the core
 //! (at most 0.5) and HTTP over in-process (at most 1.2).
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
@@ -332,13 +331,13 @@ fn run_in_process(scene: &Scene, out: &Path) -> Phases {
     let processed =
         input::process(scene.kind, &bytes, &NoResources, &options).expect("the scene processes");
     let written = Instant::now();
-    let mut output = std::fs::File::create(out).expect("output created");
-    match &processed.pieces {
-        Some(pieces) => pieces.write_to(&bytes, &mut output),
+    // Through a temporary file renamed over the last round's output, as the command line
+    // writes (`tspace::cli::write_atomically`).
+    tspace::cli::write_atomically(out, |output| match &processed.pieces {
+        Some(pieces) => pieces.write_to(&bytes, output),
         None => output.write_all(processed.bytes.as_deref().unwrap_or_default()),
-    }
+    })
     .expect("output written");
-    drop(output);
     let write = written.elapsed().as_secs_f64();
     let steps = processed
         .timings

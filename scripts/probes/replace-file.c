@@ -3,11 +3,13 @@
  * does just that; MODE 1 also has a second thread start the writeback of each 8 MiB as soon as
  * it is written (sync_file_range), so that the rename has no dirty pages left to flush; MODE 2
  * holds the previous output open across the rename and times its close (where its blocks are
- * freed). Run it in a directory on the file system to measure; it writes DIR/replace-probe.out.
+ * freed); MODE 3 writes over the previous output in place instead (truncated on open, as
+ * gltfpack and glTF-Transform write), with no temporary file and no rename. Run it in a
+ * directory on the file system to measure; it writes DIR/replace-probe.out.
  * docs/benchmarks.md, "The whole process on this machine", quotes it.
  *
  *     gcc -O2 -pthread -o /tmp/replace-file scripts/probes/replace-file.c
- *     for i in 1 2 3; do for m in 0 1 2; do /tmp/replace-file target/tmp $m; done; done
+ *     for i in 1 2 3 4; do for m in 0 1 2 3; do sleep 3; /tmp/replace-file target/tmp $m; done; done
  */
 #define _GNU_SOURCE
 #include <fcntl.h>
@@ -50,7 +52,7 @@ static void *start_writeback(void *unused) {
 
 int main(int argc, char **argv) {
     if (argc != 3) {
-        fprintf(stderr, "usage: %s DIR MODE(0|1|2)\n", argv[0]);
+        fprintf(stderr, "usage: %s DIR MODE(0|1|2|3)\n", argv[0]);
         return 2;
     }
     int mode = atoi(argv[2]);
@@ -60,9 +62,10 @@ int main(int argc, char **argv) {
     char *data = malloc(SIZE);
     memset(data, 7, SIZE);
     double start = now();
-    fd = open(temporary, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const char *target = mode == 3 ? output : temporary;
+    fd = open(target, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fd < 0) {
-        perror(temporary);
+        perror(target);
         return 1;
     }
     pthread_t helper;
@@ -82,6 +85,12 @@ int main(int argc, char **argv) {
         pthread_join(helper, NULL);
     }
     close(fd);
+    if (mode == 3) {
+        double closed = now();
+        printf("mode 3: write %.1f ms, closed %.1f ms, total %.1f ms\n", (wrote - start) * 1e3,
+               (closed - wrote) * 1e3, (closed - start) * 1e3);
+        return 0;
+    }
     int previous = mode == 2 ? open(output, O_RDONLY) : -1;
     double before_rename = now();
     if (rename(temporary, output) != 0) {

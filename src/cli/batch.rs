@@ -140,12 +140,12 @@ fn read_file(path: &Path, length: u64) -> std::io::Result<FileBytes> {
 }
 
 /// Writes to `path` through a temporary file beside it, so that a failure never leaves a partial
-/// output under the final name.
+/// output under the final name (the commands' way of writing every file; benches measure it).
 ///
 /// A path that is there and is neither a file nor a folder (`/dev/null`, `/dev/stdout`, a named
 /// pipe, a shell's `>(…)`) is written as it is: renaming a file over it would replace the device
 /// or pipe, and as root `--report /dev/null` replaced the machine's `/dev/null` with a file.
-fn write_atomically(
+pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {

@@ -15,6 +15,8 @@ mod stdio;
 mod tally;
 mod writeback;
 
+pub use batch::write_atomically;
+
 use crate::config::ServeArgs;
 use crate::scene::options::Choices;
 use crate::scene::options::{Compression, parse_angle};
