@@ -40,13 +40,7 @@ pub(super) fn write_then(
     then: impl FnOnce() -> std::io::Result<()>,
 ) -> std::io::Result<()> {
     std::thread::scope(|scope| {
-        let mut out = ChunkedWriter {
-            file: &file,
-            scope,
-            written: 0,
-            announced: 0,
-            written_up_to: None,
-        };
+        let mut out = ChunkedWriter::new(&file, scope);
         write(&mut out)?;
         // The channel closes with `out`, and the thread ends after the chunks it was told of,
         // closing its own handle of the file.
@@ -67,7 +61,18 @@ struct ChunkedWriter<'scope, 'env, 'file> {
     written_up_to: Option<mpsc::Sender<u64>>,
 }
 
-impl ChunkedWriter<'_, '_, '_> {
+impl<'scope, 'env, 'file> ChunkedWriter<'scope, 'env, 'file> {
+    /// A writer at the start of `file`, its thread not started.
+    fn new(file: &'file File, scope: &'scope Scope<'scope, 'env>) -> Self {
+        ChunkedWriter {
+            file,
+            scope,
+            written: 0,
+            announced: 0,
+            written_up_to: None,
+        }
+    }
+
     /// How much more may be written before the next chunk's end.
     fn room(&self) -> usize {
         if !AVAILABLE {
@@ -243,13 +248,7 @@ mod tests {
         let dir = scratch("thread");
         let file = File::create(dir.join("out")).expect("a new file");
         std::thread::scope(|scope| {
-            let mut out = ChunkedWriter {
-                file: &file,
-                scope,
-                written: 0,
-                announced: 0,
-                written_up_to: None,
-            };
+            let mut out = ChunkedWriter::new(&file, scope);
             out.write_all(&vec![0u8; CHUNK as usize - 1])
                 .expect("written");
             assert!(out.written_up_to.is_none());
