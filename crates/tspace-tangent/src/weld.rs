@@ -834,6 +834,20 @@ impl CornerTable {
         ranges
     }
 
+    /// The triangles the corners of `classes` belong to, from the first to the last (empty
+    /// where they have no corners).
+    pub fn triangle_span(&self, classes: &std::ops::Range<usize>) -> std::ops::Range<usize> {
+        let slots = self.offsets[classes.start] as usize..self.offsets[classes.end] as usize;
+        let corners = &self.corners[slots];
+        if corners.is_empty() {
+            return 0..0;
+        }
+        let (low, high) = corners
+            .iter()
+            .fold((u32::MAX, 0), |(low, high), &c| (low.min(c), high.max(c)));
+        low as usize / 3..high as usize / 3 + 1
+    }
+
     #[inline]
     pub fn of(&self, class: usize) -> &[u32] {
         &self.corners[self.offsets[class] as usize..self.offsets[class + 1] as usize]

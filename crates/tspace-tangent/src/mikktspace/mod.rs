@@ -22,7 +22,9 @@
 //! they are processed in parallel. Each corner's share of step 6 (its frame projected into the
 //! plane of its normal, and its angle there) is computed in the triangle pass, where the inputs
 //! are at hand and a batch of triangles runs as vector loops; the per-vertex pass reads one
-//! 16-byte record per corner.
+//! 16-byte record per corner. On a large mesh each piece of vertices computes the records of
+//! just the triangles it uses, into a buffer its thread reuses, instead of reading them from an
+//! array of them all (see [`Layout`]).
 //!
 //! The one order dependency of the reference is kept: a "group with anything" triangle takes the
 //! orientation of the first group (in the reference's order) to reach it. Vertices touching such
@@ -75,6 +77,48 @@ pub(crate) fn generate(
     check: &TriangleCheck<'_>,
     diagnostics: &mut Diagnostics,
 ) -> SplitPlan {
+    let layout = if mesh.triangle_count() >= PIECES_FROM {
+        Layout::Pieces {
+            triangles: PIECE_TRIANGLES,
+        }
+    } else {
+        Layout::Whole
+    };
+    generate_laid_out(mesh, parallel, flip_w, check, diagnostics, layout)
+}
+
+/// Where the per-vertex pass finds its corners' records.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Layout {
+    /// One array of every triangle's records, written by the triangle pass.
+    Whole,
+    /// Each piece of vertices computes the records of the triangles its vertices use (a range
+    /// of about `triangles`) into a buffer its thread reuses. On a large mesh the whole array
+    /// is tens of megabytes of fresh memory, which a fresh process pays for page by page (see
+    /// "The whole process on this machine" in docs/benchmarks.md); the pieces' buffers are a
+    /// few megabytes, and their reads stay in cache. It costs a pass of its own for the
+    /// triangles' flags and checks, and the triangles at the pieces' edges computed twice, so
+    /// it is for large meshes only.
+    Pieces { triangles: usize },
+}
+
+/// Triangles from which a mesh's records are computed per piece of vertices: below it, the whole
+/// array is small enough to be reused memory, and the second pass over the triangles costs more
+/// than it saves.
+const PIECES_FROM: usize = 1 << 18;
+
+/// Triangles per piece when records are computed per piece: a buffer of 1.5 MB.
+const PIECE_TRIANGLES: usize = 1 << 15;
+
+/// [`generate`] with the records laid out as `layout` asks (the tests compare the two).
+fn generate_laid_out(
+    mesh: &Mesh<'_>,
+    parallel: bool,
+    flip_w: bool,
+    check: &TriangleCheck<'_>,
+    diagnostics: &mut Diagnostics,
+    layout: Layout,
+) -> SplitPlan {
     let triangle_count = mesh.triangle_count();
     let weld = weld_mesh(mesh, check.all_vertices_finite(), parallel);
     // Between passes, a cancelled computation stops; its caller returns nothing of it.
@@ -89,18 +133,32 @@ pub(crate) fn generate(
     // made (4 bytes a vertex off the peak).
     let class_count = weld.class_count;
     drop(weld);
-    // Written in order, by the triangle pass, for every triangle.
-    let mut contributions = zeroed::<[Contribution; 3]>(triangle_count);
     let mut flags = vec![0u8; triangle_count];
-    let triangles = per_triangle_pass(
-        mesh,
-        check,
-        (&mut contributions[..], &mut flags[..]),
-        parallel,
-        |columns: &mut Box<FrameColumns>, triangles, (contributions, flags)| {
-            columns.compute(mesh, triangles, check, contributions, flags);
-        },
-    );
+    // Written in order, by the triangle pass, for every triangle; or, per piece, later.
+    let mut whole = Vec::new();
+    let triangles = match layout {
+        Layout::Whole => {
+            whole = zeroed::<[Contribution; 3]>(triangle_count);
+            per_triangle_pass(
+                mesh,
+                check,
+                (&mut whole[..], &mut flags[..]),
+                parallel,
+                |columns: &mut Box<FrameColumns>, triangles, (contributions, flags)| {
+                    columns.compute(mesh, triangles, check, contributions, flags);
+                },
+            )
+        }
+        Layout::Pieces { .. } => per_triangle_pass(
+            mesh,
+            check,
+            &mut flags[..],
+            parallel,
+            |columns: &mut FlagColumns, triangles, flags| {
+                columns.compute(triangles, check, flags);
+            },
+        ),
+    };
     if cancelled() {
         return SplitPlan::default();
     }
@@ -122,12 +180,42 @@ pub(crate) fn generate(
     if cancelled() {
         return SplitPlan::default();
     }
+    let threads = if parallel {
+        rayon::current_num_threads()
+    } else {
+        1
+    };
+    let (pieces, spans) = match layout {
+        Layout::Whole if !parallel => (std::iter::once(0..class_count).collect(), Vec::new()),
+        Layout::Whole => (table.chunks(threads * 16), Vec::new()),
+        Layout::Pieces { triangles } => {
+            let pieces = table.chunks((triangle_count / triangles.max(1)).max(threads * 16));
+            let spans: Vec<_> = if parallel {
+                pieces.par_iter().map(|p| table.triangle_span(p)).collect()
+            } else {
+                pieces.iter().map(|p| table.triangle_span(p)).collect()
+            };
+            // Where the triangles' order has little to do with their vertices' (a shuffled
+            // soup), the pieces' ranges overlap, and computing them would repeat much of the
+            // work: the whole array is computed instead.
+            let spanned: usize = spans.iter().map(|s| s.len()).sum();
+            if spanned > triangle_count + triangle_count / 4 + pieces.len() * BATCH {
+                whole = zeroed::<[Contribution; 3]>(triangle_count);
+                record_all(mesh, &mut whole, parallel);
+                (pieces, Vec::new())
+            } else {
+                (pieces, spans)
+            }
+        }
+    };
+    if cancelled() {
+        return SplitPlan::default();
+    }
     let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     let context = Context {
         mesh,
         corner_class: &corner_class,
         classes_are_vertices: class_count == mesh.vertex_count(),
-        contributions: &contributions,
         table: &table,
         shared: &shared,
         flip_w,
@@ -147,51 +235,174 @@ pub(crate) fn generate(
         degenerate.sort_unstable();
     }
 
-    let (mut parts, mut repairs, touched) = if parallel {
-        let pieces = table.chunks(rayon::current_num_threads() * 16);
-        let results: Vec<(Piece, Copies)> = pieces
-            .into_par_iter()
-            .map(|range| {
-                let mut copies = Copies::default();
-                if cancelled() {
-                    let nothing = Piece {
-                        repairs: Vec::new(),
-                        touched: Vec::new(),
-                    };
-                    return (nothing, copies);
-                }
-                let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
-                let piece = context.process_classes(range, &flags, &degenerate, &mut put);
-                (piece, copies)
-            })
-            .collect();
-        let mut parts = Vec::with_capacity(results.len() + 1);
-        let mut repairs = Vec::new();
-        let mut touched = Vec::new();
-        for (piece, copies) in results {
-            repairs.extend(piece.repairs);
-            touched.extend(piece.touched);
-            parts.push(copies);
-        }
-        (parts, repairs, touched)
-    } else {
-        let mut copies = Copies::default();
-        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
-        let piece = context.process_classes(0..class_count, &flags, &degenerate, &mut put);
-        (vec![copies], piece.repairs, piece.touched)
+    // Piece `k` of the per-vertex pass, with the records of `span` computed into `buffer` (or
+    // read from the whole array, where there is one).
+    let whole_records = Records {
+        first_corner: 0,
+        records: whole.as_flattened(),
     };
+    let process_piece = |k: usize, buffer: &mut PieceRecords| {
+        let mut copies = Copies::default();
+        if cancelled() {
+            let nothing = Piece {
+                repairs: Vec::new(),
+                touched: Vec::new(),
+            };
+            return (nothing, copies);
+        }
+        let records = match spans.get(k) {
+            Some(span) => buffer.compute(mesh, span.clone()),
+            None => whole_records,
+        };
+        let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
+        let piece =
+            context.process_classes(pieces[k].clone(), records, &flags, &degenerate, &mut put);
+        (piece, copies)
+    };
+    let results: Vec<(Piece, Copies)> = if parallel {
+        // A buffer per thread, handed from piece to piece (rayon may split the work into more
+        // jobs than it has threads).
+        let buffers = std::sync::Mutex::new(Vec::<PieceRecords>::new());
+        let take = || {
+            let mut buffers = buffers.lock().unwrap_or_else(|e| e.into_inner());
+            buffers.pop().unwrap_or_default()
+        };
+        (0..pieces.len())
+            .into_par_iter()
+            .map(|k| {
+                let mut buffer = take();
+                let result = process_piece(k, &mut buffer);
+                let mut buffers = buffers.lock().unwrap_or_else(|e| e.into_inner());
+                buffers.push(buffer);
+                result
+            })
+            .collect()
+    } else {
+        let mut buffer = PieceRecords::default();
+        (0..pieces.len())
+            .map(|k| process_piece(k, &mut buffer))
+            .collect()
+    };
+    let mut parts = Vec::with_capacity(results.len() + 1);
+    let mut repairs = Vec::new();
+    let mut touched = Vec::new();
+    for (piece, copies) in results {
+        repairs.extend(piece.repairs);
+        touched.extend(piece.touched);
+        parts.push(copies);
+    }
     if cancelled() {
         return SplitPlan::default();
     }
-    // The vertices left for the sequential pass own their input vertices too: new copies.
+    // The vertices left for the sequential pass own their input vertices too: new copies. Their
+    // records are read from the whole array, or computed again corner by corner.
+    let records = if spans.is_empty() {
+        whole_records
+    } else {
+        Records::NONE
+    };
     let mut copies = Copies::default();
     let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
-    context.group_touched_vertices(&touched, &mut flags, &degenerate, &mut repairs, &mut put);
+    context.group_touched_vertices(
+        &touched,
+        records,
+        &mut flags,
+        &degenerate,
+        &mut repairs,
+        &mut put,
+    );
     parts.push(copies);
 
     diagnostics.fallback_tangents = FallbackCounts::from_unordered(repairs);
     diagnostics.set_triangles(triangles);
     shared.finish(parts, mesh.normals, diagnostics)
+}
+
+/// The records of a range of corners: every corner's, one piece's, or none.
+#[derive(Clone, Copy)]
+struct Records<'a> {
+    /// The corner of `records[0]`.
+    first_corner: usize,
+    records: &'a [Contribution],
+}
+
+impl Records<'_> {
+    /// No records: each is computed again when asked for.
+    const NONE: Records<'static> = Records {
+        first_corner: 0,
+        records: &[],
+    };
+
+    /// Corner `corner`'s record, computed again exactly where it is not among these.
+    fn get(&self, mesh: &Mesh<'_>, corner: usize) -> Contribution {
+        match corner
+            .checked_sub(self.first_corner)
+            .and_then(|at| self.records.get(at))
+        {
+            Some(&record) => record,
+            None => exact_record(mesh, corner),
+        }
+    }
+}
+
+/// A thread's buffer for a piece's records, and the columns it computes them in.
+#[derive(Default)]
+struct PieceRecords {
+    records: Vec<[Contribution; 3]>,
+    triangles: TriangleColumns,
+    columns: Box<FrameColumns>,
+}
+
+impl PieceRecords {
+    /// The records of the triangles `span`, computed as the triangle pass computes them.
+    fn compute(&mut self, mesh: &Mesh<'_>, span: std::ops::Range<usize>) -> Records<'_> {
+        // Only grown: every place up to the span's length is written below.
+        if self.records.len() < span.len() {
+            self.records.resize(span.len(), [Contribution::ZERO; 3]);
+        }
+        let records = &mut self.records[..span.len()];
+        record_triangles(
+            mesh,
+            span.start,
+            records,
+            &mut self.triangles,
+            &mut self.columns,
+        );
+        Records {
+            first_corner: 3 * span.start,
+            records: records.as_flattened(),
+        }
+    }
+}
+
+/// The records of the triangles from `first` on, one per place of `out`.
+fn record_triangles(
+    mesh: &Mesh<'_>,
+    first: usize,
+    out: &mut [[Contribution; 3]],
+    triangles: &mut TriangleColumns,
+    columns: &mut FrameColumns,
+) {
+    for (k, out) in out.chunks_mut(BATCH).enumerate() {
+        triangles.gather(mesh, first + k * BATCH, out.len());
+        columns.records(mesh, triangles, out);
+    }
+}
+
+/// Every triangle's records into `out`, in runs of triangles on the thread pool when
+/// `parallel`.
+fn record_all(mesh: &Mesh<'_>, out: &mut [[Contribution; 3]], parallel: bool) {
+    const RUN: usize = 16384;
+    let run = |(k, out): (usize, &mut [[Contribution; 3]])| {
+        let mut triangles = TriangleColumns::default();
+        let mut columns = Box::<FrameColumns>::default();
+        record_triangles(mesh, k * RUN, out, &mut triangles, &mut columns);
+    };
+    if parallel {
+        out.par_chunks_mut(RUN).enumerate().for_each(run);
+    } else {
+        out.chunks_mut(RUN).enumerate().for_each(run);
+    }
 }
 
 /// What one worker hands back besides the tangents it wrote.
@@ -202,9 +413,9 @@ struct Piece {
 }
 
 /// What the one-group shortcut needs of a corner, computed in the triangle pass (every input it
-/// needs is at hand there) and read back when its vertex is grouped. Kept to 16 bytes: on a
-/// large mesh this array is most of the extra memory, and fresh memory costs a page fault per
-/// 4 KiB. The exact values behind it are recomputed for the rare vertex that takes the general
+/// needs is at hand there) and read back when its vertex is grouped. Kept to 16 bytes: an array
+/// of them all is most of the extra memory where there is one (see [`Layout`]), and fresh memory
+/// costs a page fault per 4 KiB. The exact values behind it are recomputed for the rare vertex that takes the general
 /// path (see [`Context::exact_member`]).
 ///
 /// The normal used is the corner's own; the welded vertex's may differ from it only in the sign
@@ -276,6 +487,17 @@ impl FrameColumns {
         ) => compute_portable
     }
 
+    widest_vectors! {
+        /// The contributions alone of the gathered `triangles`, into `contributions` (one per
+        /// triangle of the batch), as [`FrameColumns::compute`] computes them.
+        fn records / records_avx512 / records_avx2 (
+            &mut self,
+            mesh: &Mesh<'_>,
+            triangles: &mut TriangleColumns,
+            contributions: &mut [[Contribution; 3]],
+        ) => records_portable
+    }
+
     #[inline(always)]
     fn compute_portable(
         &mut self,
@@ -284,6 +506,19 @@ impl FrameColumns {
         check: &TriangleCheck<'_>,
         contributions: &mut [[Contribution; 3]],
         flags: &mut [u8],
+    ) {
+        self.records_portable(mesh, triangles, contributions);
+        triangles.check(check);
+        let len = contributions.len().min(BATCH);
+        flags[..len].copy_from_slice(&self.flags[..len]);
+    }
+
+    #[inline(always)]
+    fn records_portable(
+        &mut self,
+        mesh: &Mesh<'_>,
+        triangles: &mut TriangleColumns,
+        contributions: &mut [[Contribution; 3]],
     ) {
         triangles.gather_normals(mesh, &mut self.normal);
         let lanes = triangles.lanes();
@@ -309,10 +544,8 @@ impl FrameColumns {
                 }
             }
         }
-        triangles.check(check);
         let len = contributions.len().min(BATCH);
         store_contributions(&self.corner_s, &self.corner_t, &mut contributions[..len]);
-        flags[..len].copy_from_slice(&self.flags[..len]);
     }
 
     /// [`corner_arithmetic`] for corner `CORNER` of every triangle of the batch (a constant, so
@@ -337,6 +570,46 @@ impl FrameColumns {
             (csx[k], csy[k], csz[k]) = (s[0], s[1], s[2]);
             (ctx[k], cty[k], ctz[k]) = (t[0], t[1], t[2]);
         }
+    }
+}
+
+/// The flags of a batch of triangles, for a pass that computes no contributions.
+struct FlagColumns {
+    flags: [u8; BATCH],
+}
+
+impl Default for FlagColumns {
+    fn default() -> FlagColumns {
+        FlagColumns { flags: [0; BATCH] }
+    }
+}
+
+impl FlagColumns {
+    widest_vectors! {
+        /// Flags and check events of the gathered `triangles`; the flags go to `flags` (one per
+        /// triangle of the batch).
+        fn compute / compute_avx512 / compute_avx2 (
+            &mut self,
+            triangles: &mut TriangleColumns,
+            check: &TriangleCheck<'_>,
+            flags: &mut [u8],
+        ) => compute_portable
+    }
+
+    #[inline(always)]
+    fn compute_portable(
+        &mut self,
+        triangles: &mut TriangleColumns,
+        check: &TriangleCheck<'_>,
+        flags: &mut [u8],
+    ) {
+        for k in 0..triangles.lanes() {
+            let (p, uv) = triangles.corners(k);
+            self.flags[k] = triangle_frame(&p, &uv).1;
+        }
+        triangles.check(check);
+        let len = flags.len().min(BATCH);
+        flags[..len].copy_from_slice(&self.flags[..len]);
     }
 }
 
@@ -543,13 +816,34 @@ fn triangle_frame(p: &[[f32; 3]; 3], tx: &[[f32; 2]; 3]) -> (Frame, u8) {
     }
 }
 
+/// [`corner_arithmetic`] for one corner, from the mesh.
+fn exact_corner(mesh: &Mesh<'_>, corner: usize) -> ([f32; 3], [f32; 3], f32) {
+    let triangle = mesh.triangle(corner / 3);
+    let p = triangle.map(|v| mesh.positions[v]);
+    let uv = triangle.map(|v| mesh.uv(v));
+    let (frame, _) = triangle_frame(&p, &uv);
+    let normal = mesh.normals[mesh.indices[corner] as usize];
+    corner_arithmetic(&p, corner % 3, &frame, normal)
+}
+
+/// A corner's record computed again from the mesh: the same values, bit for bit, as the
+/// triangle pass stores (the same functions, and the arccosine the batched one matches).
+fn exact_record(mesh: &Mesh<'_>, corner: usize) -> Contribution {
+    let (s, t, cos) = exact_corner(mesh, corner);
+    let angle = (cos as f64).acos() as f32;
+    let t = scaled_to_bytes(t);
+    Contribution {
+        weighted_s: s.map(|x| x * angle),
+        t_direction: [t[0] as i8, t[1] as i8, t[2] as i8, 0],
+    }
+}
+
 struct Context<'a> {
     mesh: &'a Mesh<'a>,
     corner_class: &'a [u32],
     /// Whether no two vertices welded, so that a class is the one input vertex of that number
     /// (and `corner_class` is the index buffer).
     classes_are_vertices: bool,
-    contributions: &'a [[Contribution; 3]],
     table: &'a CornerTable,
     shared: &'a SharedSplit<'a>,
     flip_w: bool,
@@ -589,14 +883,8 @@ impl Context<'_> {
         }
     }
 
-    /// [`corner_arithmetic`] for one corner, from the mesh.
     fn exact_corner(&self, corner: usize) -> ([f32; 3], [f32; 3], f32) {
-        let triangle = self.mesh.triangle(corner / 3);
-        let p = triangle.map(|v| self.mesh.positions[v]);
-        let uv = triangle.map(|v| self.mesh.uv(v));
-        let (frame, _) = triangle_frame(&p, &uv);
-        let normal = self.mesh.normals[self.mesh.indices[corner] as usize];
-        corner_arithmetic(&p, corner % 3, &frame, normal)
+        exact_corner(self.mesh, corner)
     }
 
     /// The one-group sum for a vertex whose frames spread too widely for the records' test
@@ -644,6 +932,7 @@ impl Context<'_> {
     fn process_classes<P: FnMut(usize, [f32; 4])>(
         &self,
         classes: std::ops::Range<usize>,
+        records: Records<'_>,
         flags: &[u8],
         degenerate: &[(u32, u32)],
         put: &mut P,
@@ -665,7 +954,7 @@ impl Context<'_> {
                 end += 1;
             }
             let slots = first_slot..self.table.offsets[end] as usize;
-            run.gather(self, flags, &self.table.corners[slots]);
+            run.gather(self, records, flags, &self.table.corners[slots]);
             for class in start..end {
                 let corners = self.table.of(class);
                 let offset = self.table.offsets[class] as usize - first_slot;
@@ -695,7 +984,7 @@ impl Context<'_> {
                 }
                 self.pair_edges(class, &mut scratch);
                 label_components(corners, flags, &mut scratch);
-                self.evaluate(class, flags, &scratch.labels, &mut scratch.eval);
+                self.evaluate(class, records, flags, &scratch.labels, &mut scratch.eval);
                 self.finish_class(
                     class,
                     &scratch.eval.raw,
@@ -919,6 +1208,7 @@ impl Context<'_> {
     fn group_touched_vertices<P: FnMut(usize, [f32; 4])>(
         &self,
         touched: &[u32],
+        records: Records<'_>,
         flags: &mut [u8],
         degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
@@ -985,14 +1275,21 @@ impl Context<'_> {
         for (k, &class) in touched.iter().enumerate() {
             let class = class as usize;
             let labels = &labels[link_offsets[k]..link_offsets[k + 1]];
-            self.evaluate(class, flags, labels, &mut scratch.eval);
+            self.evaluate(class, records, flags, labels, &mut scratch.eval);
             self.finish_class(class, &scratch.eval.raw, degenerate, repairs, put);
         }
     }
 
     /// Computes the raw tangent of every corner around `class` into `eval.raw`, from its group
     /// label (`NONE`: no group, the corner stays unassigned).
-    fn evaluate(&self, class: usize, flags: &[u8], labels: &[u32], eval: &mut EvalScratch) {
+    fn evaluate(
+        &self,
+        class: usize,
+        records: Records<'_>,
+        flags: &[u8],
+        labels: &[u32],
+        eval: &mut EvalScratch,
+    ) {
         let corners = self.table.of(class);
         eval.raw.clear();
         eval.raw.resize(corners.len(), UNASSIGNED);
@@ -1027,7 +1324,7 @@ impl Context<'_> {
             eval.group.extend_from_slice(&eval.order[start..end]);
             let first = corners[eval.group[0] as usize] as usize;
             let orientation_preserving = flags[first / 3] & ORIENT_PRESERVING != 0;
-            if let Some(tangent) = self.one_subgroup_from_records(corners, flags, eval) {
+            if let Some(tangent) = self.one_subgroup_from_records(corners, records, flags, eval) {
                 for &j in &eval.group {
                     eval.raw[j as usize] = encode(tangent, orientation_preserving);
                 }
@@ -1060,6 +1357,7 @@ impl Context<'_> {
     fn one_subgroup_from_records(
         &self,
         corners: &[u32],
+        records: Records<'_>,
         flags: &[u8],
         eval: &mut EvalScratch,
     ) -> Option<[f32; 3]> {
@@ -1069,8 +1367,7 @@ impl Context<'_> {
             if flags[corner / 3] & GROUP_WITH_ANY != 0 {
                 return None;
             }
-            eval.records
-                .push(self.contributions[corner / 3][corner % 3]);
+            eval.records.push(records.get(self.mesh, corner));
         }
         sum_of_one_group_portable(&eval.records).map(normalize_or_zero)
     }
@@ -1163,7 +1460,13 @@ const PREFETCH_AHEAD: usize = 16;
 const RUN_CORNERS: usize = 512;
 
 impl Run {
-    fn gather(&mut self, context: &Context<'_>, flags: &[u8], corners: &[u32]) {
+    fn gather(
+        &mut self,
+        context: &Context<'_>,
+        records: Records<'_>,
+        flags: &[u8],
+        corners: &[u32],
+    ) {
         let len = corners.len();
         // Only grown, never cleared: every place up to `len` is written below.
         if self.flags.len() < len {
@@ -1188,18 +1491,18 @@ impl Run {
         // The records as one array of corners (a triangle's three are contiguous), so that a
         // corner's record and a prefetch of one ahead need no division by three. Two loops, the
         // records first: in one, the pointers it needed did not fit in registers.
-        let records = context.contributions.as_flattened();
+        let (first, records) = (records.first_corner, records.records);
         let classes = context.corner_class;
         // All but the last PREFETCH_AHEAD corners ask for the record of the corner that far
         // ahead, and for its classes, which the second loop reads; the rest are on their way.
         let ahead = corners.get(PREFETCH_AHEAD..).unwrap_or_default();
         for ((&corner, &later), record) in corners.iter().zip(ahead).zip(contributions.iter_mut()) {
-            prefetch(&records[later as usize]);
+            prefetch(&records[later as usize - first]);
             prefetch(&classes[later as usize]);
-            *record = records[corner as usize];
+            *record = records[corner as usize - first];
         }
         for (&corner, record) in corners.iter().zip(contributions).skip(ahead.len()) {
-            *record = records[corner as usize];
+            *record = records[corner as usize - first];
         }
         for ((&corner, end), flag) in corners.iter().zip(ends).zip(corner_flags) {
             let corner = corner as usize;
@@ -1727,6 +2030,193 @@ mod tests {
                 unsafe { store_contributions_avx2(&weighted, &directions, &mut avx2) };
                 assert_eq!(bits(&portable), bits(&avx2), "batch of {len}");
             }
+        }
+    }
+
+    /// A mesh with every kind of vertex the per-vertex pass tells apart: a bumpy grid of
+    /// `n` × `n` quads with a UV seam down the middle (its vertices doubled), a mirrored half,
+    /// welded duplicates, triangles of zero UV area ("group with anything"), degenerate
+    /// triangles and one vertex at NaN; its triangles in the order `order` gives.
+    struct TestMesh {
+        positions: Vec<[f32; 3]>,
+        normals: Vec<[f32; 3]>,
+        uvs: Vec<[f32; 2]>,
+        indices: Vec<u32>,
+    }
+
+    impl TestMesh {
+        fn new(n: u32, order: impl FnOnce(&mut Vec<[u32; 3]>)) -> TestMesh {
+            let (mut positions, mut normals, mut uvs) = (Vec::new(), Vec::new(), Vec::new());
+            let side = n + 1;
+            for y in 0..side {
+                for x in 0..side {
+                    let (u, v) = (x as f32 / n as f32, y as f32 / n as f32);
+                    let z = 0.2 * (5.0 * u).sin() * (3.0 * v).cos();
+                    positions.push([u, v, z]);
+                    let normal = [-z * 0.5, z * 0.3, 1.0];
+                    let length = dot(normal, normal).sqrt();
+                    normals.push(normal.map(|c| c / length));
+                    // The left half mirrored in u.
+                    uvs.push([if x < side / 2 { 1.0 - u } else { u }, v]);
+                }
+            }
+            let vertex = |x: u32, y: u32| y * side + x;
+            // The seam: the middle column's vertices again, with the other half's UVs.
+            let seam_first = positions.len() as u32;
+            for y in 0..side {
+                let v = vertex(side / 2, y) as usize;
+                positions.push(positions[v]);
+                normals.push(normals[v]);
+                uvs.push([1.0 - uvs[v][0], uvs[v][1]]);
+            }
+            // Welded duplicates: every seventh vertex again, exactly, used by some corners.
+            let duplicate_first = positions.len() as u32;
+            let duplicated: Vec<u32> = (0..side * side).step_by(7).collect();
+            for &v in &duplicated {
+                positions.push(positions[v as usize]);
+                normals.push(normals[v as usize]);
+                uvs.push(uvs[v as usize]);
+            }
+            let mut triangles = Vec::new();
+            for y in 0..n {
+                for x in 0..n {
+                    let corner = |x: u32, y: u32, t: usize| {
+                        let v = vertex(x, y);
+                        if x == side / 2 && y < side && t % 2 == 0 {
+                            // Triangles left of the middle take its seam copies.
+                            seam_first + y
+                        } else if v % 7 == 0 && t % 3 == 0 {
+                            duplicate_first + v / 7
+                        } else {
+                            v
+                        }
+                    };
+                    let left = x < side / 2;
+                    let t = (y * n + x) as usize;
+                    let (a, b) = (2 * t + if left { 0 } else { 1 }, 2 * t + 1);
+                    triangles.push([
+                        corner(x, y, a),
+                        corner(x + 1, y, a),
+                        corner(x + 1, y + 1, a),
+                    ]);
+                    triangles.push([
+                        corner(x, y, b),
+                        corner(x + 1, y + 1, b),
+                        corner(x, y + 1, b),
+                    ]);
+                }
+            }
+            // Zero UV area: three vertices of one row given the same UV.
+            for x in 2..5 {
+                uvs[vertex(x, n / 3) as usize] = [0.7, 0.4];
+            }
+            // Degenerate: two corners at one position, here and there.
+            for t in (5..triangles.len()).step_by(41) {
+                triangles[t][1] = triangles[t][0];
+            }
+            positions[vertex(n - 2, n - 3) as usize][2] = f32::NAN;
+            order(&mut triangles);
+            TestMesh {
+                positions,
+                normals,
+                uvs,
+                indices: triangles.into_iter().flatten().collect(),
+            }
+        }
+
+        fn mesh(&self) -> Mesh<'_> {
+            Mesh {
+                positions: &self.positions,
+                normals: &self.normals,
+                uvs: Some(&self.uvs),
+                indices: &self.indices,
+            }
+        }
+    }
+
+    /// The plan and diagnostics of `mesh` with its records laid out as `layout`.
+    fn laid_out(mesh: &Mesh<'_>, parallel: bool, layout: Layout) -> (SplitPlan, Diagnostics) {
+        let options = crate::Options {
+            parallel,
+            ..crate::Options::default()
+        };
+        let (mut diagnostics, non_finite_vertex) =
+            crate::diagnostics::analyze_vertices(mesh, &options);
+        let check = TriangleCheck {
+            uv_origin: options.uv_origin,
+            has_uvs: mesh.uvs.is_some(),
+            non_finite_vertex: &non_finite_vertex,
+            cancel: &crate::Cancel::default(),
+        };
+        let plan = generate_laid_out(mesh, parallel, true, &check, &mut diagnostics, layout);
+        (plan, diagnostics)
+    }
+
+    /// Records per piece of vertices give the plan and diagnostics of the whole array, bit for
+    /// bit: in pieces small enough that every vertex kind lies on a piece's edge, on one thread
+    /// and many, in the triangles' own order, reversed, and shuffled (whose pieces overlap so
+    /// much that the whole array is computed after all).
+    #[test]
+    fn records_per_piece_give_the_whole_arrays_plan() {
+        let mut random = xorshift(0x9e37_79b9_7f4a_7c15);
+        let orders: [(&str, Box<dyn FnOnce(&mut Vec<[u32; 3]>)>); 3] = [
+            ("own order", Box::new(|_| {})),
+            ("reversed", Box::new(|t| t.reverse())),
+            (
+                "shuffled",
+                Box::new(move |t| {
+                    for i in (1..t.len()).rev() {
+                        t.swap(i, random() as usize % (i + 1));
+                    }
+                }),
+            ),
+        ];
+        for (name, order) in orders {
+            let test_mesh = TestMesh::new(40, order);
+            let mesh = test_mesh.mesh();
+            let bits = |(plan, diagnostics): (SplitPlan, Diagnostics)| {
+                let tangents: Vec<[u32; 4]> = plan
+                    .vertex_tangents
+                    .iter()
+                    .map(|t| t.map(f32::to_bits))
+                    .collect();
+                (tangents, plan.source_vertex, plan.indices, diagnostics)
+            };
+            let whole = bits(laid_out(&mesh, false, Layout::Whole));
+            // The mesh has what it is meant to have.
+            let diagnostics = &whole.3;
+            assert!(diagnostics.fallback_tangents.corners.count > 0, "{name}");
+            assert!(diagnostics.duplicate_position_triangles.count > 0, "{name}");
+            assert!(diagnostics.zero_uv_area_triangles.count > 0, "{name}");
+            assert!(diagnostics.mirrored_uv_triangles.count > 0, "{name}");
+            assert!(diagnostics.non_finite_triangles.count > 0, "{name}");
+            assert!(diagnostics.vertices_added > 0, "{name}");
+            for parallel in [false, true] {
+                assert_eq!(
+                    bits(laid_out(&mesh, parallel, Layout::Whole)),
+                    whole,
+                    "{name}"
+                );
+                for triangles in [1, 7, 64, 1000] {
+                    let pieces = bits(laid_out(&mesh, parallel, Layout::Pieces { triangles }));
+                    assert_eq!(pieces, whole, "{name}, {triangles} triangles a piece");
+                }
+            }
+        }
+    }
+
+    /// A record computed again corner by corner is the triangle pass's, bit for bit, on a mesh
+    /// whose corners include NaN, zero UV area, degenerate triangles and every batch position.
+    #[test]
+    fn records_computed_again_are_the_triangle_passs() {
+        let test_mesh = TestMesh::new(13, |_| {});
+        let mesh = test_mesh.mesh();
+        let mut records = vec![[Contribution::ZERO; 3]; mesh.triangle_count()];
+        record_all(&mesh, &mut records, false);
+        let bits = |c: &Contribution| (c.weighted_s.map(f32::to_bits), c.t_direction);
+        for (corner, record) in records.as_flattened().iter().enumerate() {
+            let again = Records::NONE.get(&mesh, corner);
+            assert_eq!(bits(&again), bits(record), "corner {corner}");
         }
     }
 }
