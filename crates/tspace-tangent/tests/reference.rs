@@ -173,8 +173,8 @@ fn twisted_discs() -> Mesh {
 
 /// A torus, the same torus with mirrored UVs, a bumpy sheet, the sheet with its triangles
 /// shuffled, some corners moved onto their neighbours (degenerate triangles) and some UVs
-/// collapsed, and the twisted discs: the cases where welding, grouping, sub-groups and the
-/// fallbacks matter.
+/// collapsed, the twisted discs, and a large torus with such damage: the cases where welding,
+/// grouping, sub-groups, the fallbacks and the records' layout matter.
 fn meshes() -> Vec<Mesh> {
     let bumpy = |u: f32, v: f32| {
         let z = (u * 9.0).sin() * (v * 7.0).cos() * 0.2;
@@ -209,7 +209,21 @@ fn meshes() -> Vec<Mesh> {
         let vertex = next() as usize % damaged.uvs.len();
         damaged.uvs[vertex] = [0.5, 0.5];
     }
+    // Above 2^18 triangles the records are computed per piece of vertices: a large torus in
+    // its own triangle order, with degenerate triangles and collapsed UVs ("group with
+    // anything" vertices, whose records the sequential pass computes again).
+    let mut large = grid("large damaged torus", 400, 330, [4.0, 1.0], torus);
+    for _ in 0..200 {
+        let corner = next() as usize % large.indices.len();
+        let neighbour = (corner / 3) * 3 + (corner + 1) % 3;
+        large.indices[corner] = large.indices[neighbour];
+    }
+    for _ in 0..150 {
+        let vertex = next() as usize % large.uvs.len();
+        large.uvs[vertex] = [0.5, 0.5];
+    }
     vec![
+        large,
         grid("torus", 64, 32, [4.0, 1.0], torus),
         grid("mirrored torus", 64, 32, [-4.0, 1.0], torus),
         grid("bumpy sheet", 50, 50, [1.0, 1.0], bumpy),
