@@ -2159,7 +2159,8 @@ mod tests {
     #[test]
     fn records_per_piece_give_the_whole_arrays_plan() {
         let mut random = xorshift(0x9e37_79b9_7f4a_7c15);
-        let orders: [(&str, Box<dyn FnOnce(&mut Vec<[u32; 3]>)>); 3] = [
+        type Reorder = Box<dyn FnOnce(&mut Vec<[u32; 3]>)>;
+        let orders: [(&str, Reorder); 3] = [
             ("own order", Box::new(|_| {})),
             ("reversed", Box::new(|t| t.reverse())),
             (
