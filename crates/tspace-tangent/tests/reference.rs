@@ -171,6 +171,20 @@ fn twisted_discs() -> Mesh {
     mesh
 }
 
+/// Moves `corners` random corners onto their neighbours (making degenerate triangles) and gives
+/// `uvs` random vertices one UV (making triangles of zero UV area).
+fn damage(mesh: &mut Mesh, corners: usize, uvs: usize, next: &mut impl FnMut() -> u32) {
+    for _ in 0..corners {
+        let corner = next() as usize % mesh.indices.len();
+        let neighbour = (corner / 3) * 3 + (corner + 1) % 3;
+        mesh.indices[corner] = mesh.indices[neighbour];
+    }
+    for _ in 0..uvs {
+        let vertex = next() as usize % mesh.uvs.len();
+        mesh.uvs[vertex] = [0.5, 0.5];
+    }
+}
+
 /// A torus, the same torus with mirrored UVs, a bumpy sheet, the sheet with its triangles
 /// shuffled, some corners moved onto their neighbours (degenerate triangles) and some UVs
 /// collapsed, the twisted discs, and a large torus with such damage: the cases where welding,
@@ -200,28 +214,12 @@ fn meshes() -> Vec<Mesh> {
             damaged.indices.swap(t * 3 + corner, other * 3 + corner);
         }
     }
-    for _ in 0..60 {
-        let corner = next() as usize % damaged.indices.len();
-        let neighbour = (corner / 3) * 3 + (corner + 1) % 3;
-        damaged.indices[corner] = damaged.indices[neighbour];
-    }
-    for _ in 0..40 {
-        let vertex = next() as usize % damaged.uvs.len();
-        damaged.uvs[vertex] = [0.5, 0.5];
-    }
+    damage(&mut damaged, 60, 40, &mut next);
     // Above 2^18 triangles the records are computed per piece of vertices: a large torus in
     // its own triangle order, with degenerate triangles and collapsed UVs ("group with
     // anything" vertices, whose records the sequential pass computes again).
     let mut large = grid("large damaged torus", 400, 330, [4.0, 1.0], torus);
-    for _ in 0..200 {
-        let corner = next() as usize % large.indices.len();
-        let neighbour = (corner / 3) * 3 + (corner + 1) % 3;
-        large.indices[corner] = large.indices[neighbour];
-    }
-    for _ in 0..150 {
-        let vertex = next() as usize % large.uvs.len();
-        large.uvs[vertex] = [0.5, 0.5];
-    }
+    damage(&mut large, 200, 150, &mut next);
     vec![
         large,
         grid("torus", 64, 32, [4.0, 1.0], torus),
