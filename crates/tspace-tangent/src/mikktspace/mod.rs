@@ -415,8 +415,8 @@ struct Piece {
 /// What the one-group shortcut needs of a corner, computed in the triangle pass (every input it
 /// needs is at hand there) and read back when its vertex is grouped. Kept to 16 bytes: an array
 /// of them all is most of the extra memory where there is one (see [`Layout`]), and fresh memory
-/// costs a page fault per 4 KiB. The exact values behind it are recomputed for the rare vertex that takes the general
-/// path (see [`Context::exact_member`]).
+/// costs a page fault per 4 KiB. The exact values behind it are recomputed for the rare vertex
+/// that takes the general path (see [`Context::exact_member`]).
 ///
 /// The normal used is the corner's own; the welded vertex's may differ from it only in the sign
 /// of a zero component, which changes no bit of the sums, angles and comparisons made from it.
@@ -883,6 +883,7 @@ impl Context<'_> {
         }
     }
 
+    /// [`exact_corner`] of this context's mesh.
     fn exact_corner(&self, corner: usize) -> ([f32; 3], [f32; 3], f32) {
         exact_corner(self.mesh, corner)
     }
