@@ -26,6 +26,40 @@ fn jobs(server: &ServerProcess) -> Option<(u64, u64)> {
     ))
 }
 
+/// POSTs `body` to /v1/tangents on a thread of its own, which returns the raw response.
+fn post_in_background(addr: &str, body: Vec<u8>) -> std::thread::JoinHandle<Vec<u8>> {
+    let addr = addr.to_owned();
+    std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        let mut stream = std::net::TcpStream::connect(&addr).unwrap();
+        let head = format!(
+            "POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/gltf-binary\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            body.len()
+        );
+        stream.write_all(head.as_bytes()).unwrap();
+        stream.write_all(&body).unwrap();
+        let mut response = Vec::new();
+        stream.read_to_end(&mut response).unwrap();
+        response
+    })
+}
+
+/// Polls the jobs gauges until `ready(queued, running)`, for at most 20 s.
+fn wait_for_jobs(server: &ServerProcess, what: &str, ready: impl Fn(u64, u64) -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let (queued, running) = jobs(server).unwrap_or((0, 0));
+        if ready(queued, running) {
+            return;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "waited in vain for {what}: {queued} queued, {running} running"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
 /// SIGTERM while one job runs and others wait: every accepted request still gets its whole
 /// answer, new connections are refused, and the process exits 0.
 #[cfg(unix)]
@@ -35,41 +69,18 @@ fn sigterm_under_load_finishes_accepted_work_and_refuses_new() {
         env!("CARGO_BIN_EXE_tspace"),
         &["--concurrency", "1", "--queue", "8"],
     );
-    // Big enough that the five jobs queue up behind the one worker before the first finishes.
-    let body = grid(400);
+    // One large job first, and only once it runs four small ones: they queue behind it while it
+    // runs, however fast the core is. (Five jobs of one size raced the uploads: as the core got
+    // faster, the first could finish before the last had arrived.)
     let accepted = 5;
-    let clients: Vec<_> = (0..accepted)
-        .map(|_| {
-            let body = body.clone();
-            let addr = server.addr.clone();
-            std::thread::spawn(move || {
-                use std::io::{Read, Write};
-                let mut stream = std::net::TcpStream::connect(&addr).unwrap();
-                let head = format!(
-                    "POST /v1/tangents HTTP/1.1\r\nHost: t\r\nContent-Type: model/gltf-binary\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
-                    body.len()
-                );
-                stream.write_all(head.as_bytes()).unwrap();
-                stream.write_all(&body).unwrap();
-                let mut response = Vec::new();
-                stream.read_to_end(&mut response).unwrap();
-                response
-            })
-        })
-        .collect();
-    // Wait until the work is on the pool: one running, the rest queued.
-    let deadline = Instant::now() + Duration::from_secs(20);
-    loop {
-        let (queued, running) = jobs(&server).unwrap_or((0, 0));
-        if running == 1 && queued + running == accepted {
-            break;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "the jobs never queued up: {queued} queued, {running} running"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let mut clients = vec![post_in_background(&server.addr, grid(700))];
+    wait_for_jobs(&server, "the large job to run", |_, running| running == 1);
+    clients.extend((1..accepted).map(|_| post_in_background(&server.addr, grid(100))));
+    wait_for_jobs(
+        &server,
+        "one job running, the rest queued",
+        |queued, running| running == 1 && queued + running == accepted,
+    );
     server.terminate();
     // New connections are refused while the accepted work drains.
     std::thread::sleep(Duration::from_millis(50));
