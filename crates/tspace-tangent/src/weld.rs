@@ -11,6 +11,7 @@ use super::prefetch::prefetch;
 use super::vectors::widest_vectors;
 use rayon::prelude::*;
 use std::borrow::Cow;
+use std::ops::Range;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Sentinel for "no entry" in index arrays.
@@ -285,9 +286,63 @@ fn weld_in_shards(key: &Key<'_>, salts: [u32; 8], parallel: bool) -> Weld {
 /// The smallest piece of a per-vertex pass worth handing to another thread.
 const MIN_LEN: usize = 1 << 14;
 
+/// Vertices dealt into shards per block of this many: a block's hashes and counts stay in
+/// cache while its vertices are dealt.
+const DEAL_BLOCK: usize = 1 << 16;
+
+/// One block of vertices dealt into shards: each shard's `(vertex, hash)` pairs in ascending
+/// vertex order, shard after shard.
+struct Dealt {
+    /// `starts[s]..starts[s + 1]` indexes `pairs` for shard `s`.
+    starts: Vec<u32>,
+    pairs: Vec<[u32; 2]>,
+}
+
+impl Dealt {
+    /// Hashes vertices `vertices` and deals them into `1 << shard_bits` shards by their hash's
+    /// top bits. A vertex that equals nothing (NaN) goes into none.
+    fn of(key: &Key<'_>, salts: [u32; 8], shard_bits: u32, vertices: Range<usize>) -> Dealt {
+        let mut hashes = Vec::with_capacity(vertices.len());
+        let mut block = BlockHashes::with_salts(salts);
+        for start in vertices.clone().step_by(HASH_BLOCK) {
+            hashes.extend_from_slice(block.of_block(key, start));
+        }
+        hashes.truncate(vertices.len());
+        let shard_of = |(v, &hash): (usize, &u32)| {
+            key.self_equal(v)
+                .then(|| (hash >> (32 - shard_bits)) as usize)
+        };
+        let mut starts = vec![0u32; (1 << shard_bits) + 1];
+        for shard in vertices.clone().zip(&hashes).filter_map(shard_of) {
+            starts[shard + 1] += 1;
+        }
+        for s in 1..starts.len() {
+            starts[s] += starts[s - 1];
+        }
+        let mut next = starts.clone();
+        let mut pairs = vec![[0u32; 2]; starts.last().map_or(0, |&n| n as usize)];
+        for (v, &hash) in vertices.zip(&hashes) {
+            if let Some(shard) = shard_of((v, &hash)) {
+                pairs[next[shard] as usize] = [v as u32, hash];
+                next[shard] += 1;
+            }
+        }
+        Dealt { starts, pairs }
+    }
+
+    fn shard(&self, s: usize) -> &[[u32; 2]] {
+        &self.pairs[self.starts[s] as usize..self.starts[s + 1] as usize]
+    }
+}
+
 /// For every vertex, the first vertex (lowest index) with an equal key: the vertices are hashed
-/// into shards by their hash's top bits, and each shard is welded in a table of its own. `None`
-/// when every vertex is its own first, which spares putting the firsts back in vertex order.
+/// and dealt into shards by their hash's top bits, block by block, and each shard is welded in a
+/// table of its own. `None` when every vertex is its own first, which spares putting the firsts
+/// back in vertex order.
+///
+/// Each block carries its vertices' hashes with them into the shards, where a list of vertex
+/// numbers per shard had the weld read each vertex's hash from an array of them all, a cache
+/// miss a vertex.
 fn first_equal_vertices(key: &Key<'_>, salts: [u32; 8], parallel: bool) -> Option<Vec<u32>> {
     let vertex_count = key.positions.len();
     let shard_bits = (vertex_count / SHARD_VERTICES)
@@ -295,73 +350,44 @@ fn first_equal_vertices(key: &Key<'_>, salts: [u32; 8], parallel: bool) -> Optio
         .trailing_zeros()
         .clamp(1, 12);
     let shard_count = 1usize << shard_bits;
-    // Per vertex: its hash (kept in the table, so that most probes are decided without reading
-    // the vertices; its low bits are the slot) and its shard, the hash's top bits; `NONE` keeps
-    // a vertex that equals nothing (NaN) out of every shard.
-    let hash_block = |(block, (tags, shards)): (usize, (&mut [u32], &mut [u32]))| {
-        let start = block * HASH_BLOCK;
-        let mut hashes = BlockHashes::with_salts(salts);
-        let vertices = (start..).zip(hashes.of_block(key, start));
-        for ((v, &hash), (tag, shard)) in vertices.zip(tags.iter_mut().zip(shards)) {
-            *tag = hash;
-            *shard = if key.self_equal(v) {
-                hash >> (32 - shard_bits)
-            } else {
-                NONE
-            };
-        }
+    let deal = |b: usize| {
+        let start = b * DEAL_BLOCK;
+        Dealt::of(
+            key,
+            salts,
+            shard_bits,
+            start..(start + DEAL_BLOCK).min(vertex_count),
+        )
     };
-    let mut tags = vec![0u32; vertex_count];
-    let mut shards = vec![0u32; vertex_count];
-    if parallel {
-        tags.par_chunks_mut(HASH_BLOCK)
-            .zip(shards.par_chunks_mut(HASH_BLOCK))
-            .enumerate()
-            .with_min_len(MIN_LEN / HASH_BLOCK)
-            .for_each(hash_block);
+    let blocks = vertex_count.div_ceil(DEAL_BLOCK);
+    let dealt: Vec<Dealt> = if parallel {
+        (0..blocks).into_par_iter().map(deal).collect()
     } else {
-        tags.chunks_mut(HASH_BLOCK)
-            .zip(shards.chunks_mut(HASH_BLOCK))
-            .enumerate()
-            .for_each(hash_block);
-    }
-    // The vertices of every shard, ascending.
-    let by_shard = CornerTable::build_filtered(&shards, shard_count, |_| true, parallel);
-    drop(shards);
+        (0..blocks).map(deal).collect()
+    };
 
-    // The first equal vertex of every vertex in `by_shard` order, shard by shard.
-    let mut firsts = vec![0u32; by_shard.corners.len()];
-    let mut pieces = Vec::with_capacity(shard_count);
-    let mut rest = firsts.as_mut_slice();
-    for shard in 0..shard_count {
-        let (piece, tail) = rest.split_at_mut(by_shard.of(shard).len());
-        pieces.push((shard, piece));
-        rest = tail;
-    }
-    // Whether the shard found any vertex equal to an earlier one.
-    let weld_shard = |(shard, firsts): (usize, &mut [u32])| {
-        let mut welded = false;
-        let vertices = by_shard.of(shard);
+    // The shard's vertices (blocks in order, so ascending) that equal an earlier one, each with
+    // that first one.
+    let weld_shard = |shard: usize| {
+        let mut welded = Vec::new();
+        let size: usize = dealt.iter().map(|d| d.shard(shard).len()).sum();
         // Not the roomier table of the one-table weld: three slots a vertex made the 200k
         // meshes, welded in shards, no faster (six interleaved rounds).
-        let buckets = table_buckets(vertices.len(), false);
+        let buckets = table_buckets(size, false);
         let mask = buckets - 1;
-        // (first vertex, its tag); `NONE` marks an empty slot.
+        // (first vertex, its hash); `NONE` marks an empty slot.
         let mut table = vec![(NONE, 0u32); buckets];
-        for (&v, first) in vertices.iter().zip(firsts.iter_mut()) {
-            let tag = tags[v as usize];
+        for &[v, tag] in dealt.iter().flat_map(|d| d.shard(shard)) {
             let mut slot = tag as usize & mask;
             let mut probe = 0;
             loop {
                 let (held, held_tag) = table[slot];
                 if held == NONE {
                     table[slot] = (v, tag);
-                    *first = v;
                     break;
                 }
                 if held_tag == tag && key.equal(held as usize, v as usize) {
-                    *first = held;
-                    welded = true;
+                    welded.push([v, held]);
                     break;
                 }
                 probe += 1;
@@ -370,23 +396,19 @@ fn first_equal_vertices(key: &Key<'_>, salts: [u32; 8], parallel: bool) -> Optio
         }
         welded
     };
-    // Every shard is welded (no `any`, which would stop at the first that welds).
-    let welded = if parallel {
-        pieces
-            .into_par_iter()
-            .map(weld_shard)
-            .reduce(|| false, |a, b| a | b)
+    let welded: Vec<Vec<[u32; 2]>> = if parallel {
+        (0..shard_count).into_par_iter().map(weld_shard).collect()
     } else {
-        pieces.into_iter().map(weld_shard).fold(false, |a, b| a | b)
+        (0..shard_count).map(weld_shard).collect()
     };
-    drop(tags);
-    if !welded {
+    drop(dealt);
+    if welded.iter().all(Vec::is_empty) {
         return None;
     }
 
-    // Back to vertex order; vertices outside every shard are their own first.
+    // Back to vertex order; every other vertex is its own first.
     let mut first_of_vertex: Vec<u32> = (0..vertex_count as u32).collect();
-    for (&v, &first) in by_shard.corners.iter().zip(&firsts) {
+    for &[v, first] in welded.iter().flatten() {
         first_of_vertex[v as usize] = first;
     }
     Some(first_of_vertex)
