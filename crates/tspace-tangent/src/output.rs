@@ -238,12 +238,14 @@ impl<'a> SharedSplit<'a> {
         // Where every tangent has the same handedness, as in a mesh without mirrored texture
         // coordinates, no triangle can mix them: one pass over the vertices spares one over
         // the corners reading a tangent for each.
-        // (Blocks, each a vector pass, so that a mesh that has both stops looking early.)
+        // (Blocks, each a vector pass, so that a mesh that has both stops looking early.) A `w`
+        // of zero is neither: only a vertex no triangle uses has one by now (every corner put
+        // gets ±1), and counted as the other handedness, as it was, one unused vertex sent a
+        // 2M-triangle sphere through the pass over the corners for nothing.
         let mut seen = (false, false);
         for block in vertex_tangents.chunks(1024) {
-            seen = block.iter().fold(seen, |(positive, other), t| {
-                let is_positive = t[3] > 0.0;
-                (positive | is_positive, other | !is_positive)
+            seen = block.iter().fold(seen, |(positive, negative), t| {
+                (positive | (t[3] > 0.0), negative | (t[3] < 0.0))
             });
             if seen.0 && seen.1 {
                 break;
