@@ -608,6 +608,7 @@ fn answer_parts(processed: &mut Processed, main: &Bytes) -> Result<Vec<Bytes>, P
         .into_iter()
         .map(|part| match part {
             Part::Owned(bytes) => Ok(Bytes::from(bytes)),
+            Part::Floats(floats) => Ok(Bytes::from_owner(floats)),
             Part::Input(range) if range.end <= input.len() => Ok(input.slice(range)),
             Part::Input(range) => Err(Problem::new(
                 ProblemCode::Internal,

@@ -37,7 +37,7 @@ use std::collections::HashMap;
 use std::collections::hash_map::Entry;
 use tspace_json::{Node, Text};
 use tspace_tangent::{Cancel, Marks, Method, Options, UvOrigin};
-use write::{Changes, PrimitiveEdit, Ref};
+use write::{Changes, PendingFloats, PrimitiveEdit, Ref};
 
 fn accessor_count(root: &Node, index: Option<usize>) -> usize {
     index
@@ -523,9 +523,14 @@ fn report_primitives(
             report,
         )?;
         if let Some(j) = job.filter(|_| span.is_some_and(|(_, last)| last == p))
-            && let Some(c) = computed.get_mut(j).and_then(Option::take)
+            && let Some(mut c) = computed.get_mut(j).and_then(Option::take)
         {
-            let written = edits.job_refs.get(j).is_some_and(|refs| refs.written);
+            let refs = edits.job_refs.get_mut(j);
+            let written = refs.as_ref().is_some_and(|refs| refs.written);
+            if let Some(pending) = refs.and_then(|refs| refs.pending_tangents.take()) {
+                let tangents = std::mem::take(&mut c.tangents.split.vertex_tangents);
+                edits.changes.fill_floats(pending, tangents)?;
+            }
             add_totals(&mut report.summary, &c, written);
         }
     }
@@ -902,15 +907,17 @@ fn octahedral_normals(scene: &Scene<'_>, key: &GeometryKey) -> bool {
 
 /// The job's TANGENT accessor: float, or quantized to `storage`'s type as close to the float
 /// tangents as the type (or the octahedral filter) allows, and as orthogonal to the decoded
-/// normals, with the largest angle that added.
+/// normals, with the largest angle that added. Float tangents are the computation's own,
+/// moved into the output once its last primitive is reported: the view waits for them.
 fn add_tangents(
     changes: &mut Changes,
     c: &Computed,
     storage: Option<TangentStorage>,
-) -> (Ref, Option<(Snorm, f32)>) {
+) -> (AddedTangents, Option<PendingFloats>) {
     let split = &c.tangents.split;
     let Some(TangentStorage { snorm, octahedral }) = storage else {
-        return (changes.add_floats(&split.vertex_tangents, false), None);
+        let (r, pending) = changes.add_floats_later(split.vertex_tangents.len());
+        return ((r, None), Some(pending));
     };
     let source_normals = c.geometry.normals.as_deref().unwrap_or(&[]);
     let normals: Vec<[f32; 3]> = split
@@ -929,11 +936,11 @@ fn add_tangents(
         };
         let degrees = quantized.max_added_degrees;
         let r = changes.add_snorm_filtered(quantized.bytes, count, snorm, vec4, Some(prefiltered));
-        return (r, Some((snorm, degrees)));
+        return ((r, Some((snorm, degrees))), None);
     }
     let quantized = quantize::quantize_tangents(&split.vertex_tangents, &normals, snorm);
     let r = changes.add_snorm(quantized.bytes, count, snorm, vec4);
-    (r, Some((snorm, quantized.max_added_degrees)))
+    ((r, Some((snorm, quantized.max_added_degrees))), None)
 }
 
 /// A morph target's TANGENT deltas: in the base TANGENT's normalized type when every component
@@ -1011,11 +1018,15 @@ fn why_storage_changed(
     }
 }
 
+/// A job's TANGENT accessor, and for a quantized one its type and the largest angle it added.
+type AddedTangents = (Ref, Option<(Snorm, f32)>);
+
 /// The accessors one job adds, shared by every primitive that uses it.
 #[derive(Default)]
 struct JobRefs {
-    /// The TANGENT accessor, and for a quantized one its type and the largest angle it added.
-    tangent: Option<(Ref, Option<(Snorm, f32)>)>,
+    tangent: Option<AddedTangents>,
+    /// A float TANGENT accessor's view, until the job's tangents are moved into it.
+    pending_tangents: Option<PendingFloats>,
     /// With debug colours, COLOR_0.
     color: Option<Ref>,
     normal: Option<Ref>,
@@ -1068,9 +1079,14 @@ impl Edits {
         let painting = scene.painted.get(job).is_some();
         let refs = written_refs(&mut self.job_refs, job);
         let changes = &mut self.changes;
-        let (tangent, _) = *refs
-            .tangent
-            .get_or_insert_with(|| add_tangents(changes, c, snorm));
+        let (tangent, _) = match refs.tangent {
+            Some(added) => added,
+            None => {
+                let (added, pending) = add_tangents(changes, c, snorm);
+                refs.pending_tangents = pending;
+                *refs.tangent.insert(added)
+            }
+        };
         let mut edit = PrimitiveEdit {
             remove_draco: draco::extension(primitive).is_some(),
             ..PrimitiveEdit::default()

@@ -26,7 +26,7 @@ use super::quantize::Snorm;
 use super::refs::{self, Owner};
 use crate::scene::error::{ProblemCode, SceneError};
 use crate::scene::options::Compression;
-use crate::scene::pieces::{self, Part};
+use crate::scene::pieces::{self, FloatBytes, Part};
 use crate::scene::report::{Dropped, Notice, thousands};
 use crate::scene::uri;
 use crate::scene::{OutputFormat, index32};
@@ -45,13 +45,57 @@ const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 
 struct NewView {
-    data: Vec<u8>,
+    data: ViewData,
     target: Option<u32>,
     byte_stride: Option<usize>,
     /// What the data is, for the meshopt encoder.
     shape: Shape,
     /// For a copy of a filtered meshopt view: the input's pre-filter values, copied alike.
     prefiltered: Option<Prefiltered>,
+}
+
+/// A new view's bytes.
+enum ViewData {
+    Bytes(Vec<u8>),
+    /// Float vectors moved in from the computation ([`FloatBytes`]).
+    Floats(FloatBytes),
+    /// Values still to come ([`Changes::fill_floats`]), this many bytes of them.
+    Pending(usize),
+}
+
+impl ViewData {
+    fn as_slice(&self) -> &[u8] {
+        match self {
+            ViewData::Bytes(bytes) => bytes,
+            ViewData::Floats(floats) => floats.as_ref(),
+            ViewData::Pending(_) => &[],
+        }
+    }
+
+    fn len(&self) -> usize {
+        match self {
+            ViewData::Pending(len) => *len,
+            data => data.as_slice().len(),
+        }
+    }
+
+    /// The data as a piece of the output, taken out of the view.
+    fn take_part(&mut self) -> Part {
+        match std::mem::replace(self, ViewData::Bytes(Vec::new())) {
+            ViewData::Bytes(bytes) => Part::Owned(bytes),
+            ViewData::Floats(floats) => Part::Floats(floats),
+            ViewData::Pending(_) => Part::Owned(Vec::new()),
+        }
+    }
+}
+
+/// A view of float vectors whose values come later: a job's tangents, which the primitives that
+/// share the job may still read until the last of them is reported. It names its view, and is
+/// used up by [`Changes::fill_floats`].
+#[must_use]
+pub struct PendingFloats {
+    view: usize,
+    count: usize,
 }
 
 struct NewAccessor {
@@ -199,6 +243,16 @@ impl Changes {
         byte_stride: Option<usize>,
         shape: Shape,
     ) -> usize {
+        self.push_view_data(ViewData::Bytes(data), target, byte_stride, shape)
+    }
+
+    fn push_view_data(
+        &mut self,
+        data: ViewData,
+        target: Option<u32>,
+        byte_stride: Option<usize>,
+        shape: Shape,
+    ) -> usize {
         self.views.push(NewView {
             data,
             target,
@@ -251,6 +305,58 @@ impl Changes {
             count: values.len(),
             min_max,
         })
+    }
+
+    /// A vec4 float vertex attribute (TANGENT) of `count` values still to come: they are given
+    /// with [`Changes::fill_floats`], moved in rather than copied.
+    pub fn add_floats_later(&mut self, count: usize) -> (Ref, PendingFloats) {
+        let view = self.push_view_data(
+            ViewData::Pending(count * 16),
+            Some(ARRAY_BUFFER),
+            None,
+            Shape::Vertex { stride: 16 },
+        );
+        let r = self.push_accessor(NewAccessor {
+            view,
+            component_type: ComponentType::F32,
+            element_type: ElementType::Vec4,
+            normalized: false,
+            count,
+            min_max: None,
+        });
+        (r, PendingFloats { view, count })
+    }
+
+    /// Gives a view of [`Changes::add_floats_later`] its values, which must be as many as it
+    /// was made for.
+    pub fn fill_floats(
+        &mut self,
+        pending: PendingFloats,
+        values: Vec<[f32; 4]>,
+    ) -> Result<(), SceneError> {
+        let PendingFloats { view, count } = pending;
+        let Some(slot) = self.views.get_mut(view) else {
+            return Err(SceneError::new(
+                ProblemCode::Internal,
+                format!("new view {view} to fill does not exist"),
+            ));
+        };
+        if values.len() != count {
+            return Err(SceneError::new(
+                ProblemCode::Internal,
+                format!(
+                    "new view {view} was made for {count} values and given {}",
+                    values.len()
+                ),
+            ));
+        }
+        slot.data = match FloatBytes::new(values) {
+            Ok(floats) => ViewData::Floats(floats),
+            Err(values) => {
+                ViewData::Bytes(little_endian_bytes(values.as_flattened(), f32::to_le_bytes))
+            }
+        };
+        Ok(())
     }
 
     /// Normalized signed integer vectors (quantized TANGENT or its morph deltas), already
@@ -573,6 +679,16 @@ pub fn write(
         buffers,
         other_chunks,
     } = loaded;
+    if let Some(view) = changes
+        .views
+        .iter()
+        .position(|v| matches!(v.data, ViewData::Pending(_)))
+    {
+        return Err(SceneError::new(
+            ProblemCode::Internal,
+            format!("new view {view} never got its values"),
+        ));
+    }
     let (json, layout, mut images, mut written) =
         edit(&doc, &buffers, &mut changes, format, compression, resources)?;
     // The edited JSON refers to the input's text alone. The tree goes before the output is
@@ -1120,7 +1236,7 @@ impl<'s> BinPieces<'s> {
             .map(|p| match p {
                 Piece::Borrowed(b) => *b,
                 Piece::Owned(v) => v.as_slice(),
-                Piece::View(i) => changes.views.get(*i).map_or(&[][..], |v| &v.data),
+                Piece::View(i) => changes.views.get(*i).map_or(&[][..], |v| v.data.as_slice()),
                 Piece::Image(i) => images.data.get(*i).map_or(&[][..], Vec::as_slice),
             })
             .collect()
@@ -1805,13 +1921,10 @@ fn emit_pieces(
             pieces.push(match piece {
                 Piece::Borrowed(bytes) => part_of(bytes, input),
                 Piece::Owned(bytes) => Part::Owned(bytes),
-                Piece::View(i) => Part::Owned(
-                    changes
-                        .views
-                        .get_mut(i)
-                        .map(|v| std::mem::take(&mut v.data))
-                        .unwrap_or_default(),
-                ),
+                Piece::View(i) => changes
+                    .views
+                    .get_mut(i)
+                    .map_or(Part::Owned(Vec::new()), |v| v.data.take_part()),
                 Piece::Image(i) => Part::Owned(
                     images
                         .data
@@ -2038,6 +2151,87 @@ mod tests {
             "{text}"
         );
         assert!(text.len() < 600, "{} bytes", text.len());
+    }
+
+    /// Float vectors given later are the bytes `add_floats` writes for them at once, and become
+    /// the output's piece as they are; given in another number than the view was made for,
+    /// they are refused.
+    #[test]
+    fn floats_given_later_are_the_bytes_of_floats_given_at_once() {
+        let values = vec![[1.0f32, -0.5, 0.25, 1.0], [0.0, 1.0, -0.0, -1.0]];
+        let mut at_once = Changes::default();
+        at_once.add_floats(&values, false);
+        let mut later = Changes::default();
+        let (r, pending) = later.add_floats_later(values.len());
+        assert_eq!(r, Ref::New(0));
+        assert_eq!(later.views[0].data.len(), 32);
+        later.fill_floats(pending, values.clone()).unwrap();
+        assert_eq!(
+            later.views[0].data.as_slice(),
+            at_once.views[0].data.as_slice()
+        );
+        let (a, b) = (&later.accessors[0], &at_once.accessors[0]);
+        assert_eq!(
+            (
+                a.view,
+                a.component_type,
+                a.element_type,
+                a.normalized,
+                a.count
+            ),
+            (
+                b.view,
+                b.component_type,
+                b.element_type,
+                b.normalized,
+                b.count
+            )
+        );
+        assert!(a.min_max.is_none());
+        let part = later.views[0].data.take_part();
+        if cfg!(target_endian = "little") {
+            assert!(
+                matches!(&part, Part::Floats(f) if f.as_ref() == at_once.views[0].data.as_slice())
+            );
+        }
+
+        let mut wrong = Changes::default();
+        let (_, pending) = wrong.add_floats_later(3);
+        let refused = wrong.fill_floats(pending, values).unwrap_err();
+        assert!(
+            refused
+                .to_string()
+                .contains("made for 3 values and given 2"),
+            "{refused}"
+        );
+    }
+
+    /// A view whose floats never came fails the write, rather than writing an accessor over
+    /// bytes that are not there.
+    #[test]
+    fn a_view_never_given_its_floats_fails_the_write() {
+        let json = br#"{"asset":{"version":"2.0"},"meshes":[]}"#;
+        let limits = super::super::load::LoadLimits {
+            max_buffer_bytes: 1 << 20,
+        };
+        let loaded = super::super::load::load(json, &super::super::load::NoResources, &limits)
+            .expect("a minimal glTF loads");
+        let mut changes = Changes::default();
+        let _never_filled = changes.add_floats_later(4);
+        let result = write(
+            loaded,
+            changes,
+            OutputFormat::Glb,
+            Compression::Auto,
+            &super::super::load::NoResources,
+            None,
+            None,
+        );
+        let error = result.err().expect("the write fails");
+        assert!(
+            error.to_string().contains("never got its values"),
+            "{error}"
+        );
     }
 
     #[test]
@@ -2392,7 +2586,9 @@ fn lay_out_packed(
         changes
             .views
             .par_iter()
-            .map(|view| compress::encode(&view.data, view.shape, view.prefiltered.as_ref()))
+            .map(|view| {
+                compress::encode(view.data.as_slice(), view.shape, view.prefiltered.as_ref())
+            })
             .collect()
     } else {
         changes.views.iter().map(|_| None).collect()
@@ -2474,7 +2670,7 @@ fn lay_out_packed(
                 new_fallback.push(fallback);
             }
             None => {
-                new_view_offsets.push(push_at(&mut bin, &view.data, 4, 0));
+                new_view_offsets.push(push_at(&mut bin, view.data.as_slice(), 4, 0));
                 new_fallback.push(0);
             }
         }
