@@ -95,7 +95,6 @@ impl ViewData {
 #[must_use]
 pub struct PendingFloats {
     view: usize,
-    count: usize,
 }
 
 struct NewAccessor {
@@ -285,7 +284,25 @@ impl Changes {
             let list = |a: [f32; N]| a.iter().map(|&x| float_bound(x)).collect();
             (list(lo), list(hi))
         });
-        let view = self.push_view(
+        self.push_float_attribute::<N>(ViewData::Bytes(data), values.len(), min_max)
+    }
+
+    /// A vec4 float vertex attribute (TANGENT) of `count` values still to come: they are given
+    /// with [`Changes::fill_floats`], moved in rather than copied.
+    pub fn add_floats_later(&mut self, count: usize) -> (Ref, PendingFloats) {
+        let r = self.push_float_attribute::<4>(ViewData::Pending(count * 16), count, None);
+        let view = self.views.len() - 1;
+        (r, PendingFloats { view })
+    }
+
+    /// The view of `count` float vectors of `N` components, and their accessor.
+    fn push_float_attribute<const N: usize>(
+        &mut self,
+        data: ViewData,
+        count: usize,
+        min_max: Option<Bounds>,
+    ) -> Ref {
+        let view = self.push_view_data(
             data,
             Some(ARRAY_BUFFER),
             None,
@@ -302,29 +319,9 @@ impl Changes {
             component_type: ComponentType::F32,
             element_type,
             normalized: false,
-            count: values.len(),
+            count,
             min_max,
         })
-    }
-
-    /// A vec4 float vertex attribute (TANGENT) of `count` values still to come: they are given
-    /// with [`Changes::fill_floats`], moved in rather than copied.
-    pub fn add_floats_later(&mut self, count: usize) -> (Ref, PendingFloats) {
-        let view = self.push_view_data(
-            ViewData::Pending(count * 16),
-            Some(ARRAY_BUFFER),
-            None,
-            Shape::Vertex { stride: 16 },
-        );
-        let r = self.push_accessor(NewAccessor {
-            view,
-            component_type: ComponentType::F32,
-            element_type: ElementType::Vec4,
-            normalized: false,
-            count,
-            min_max: None,
-        });
-        (r, PendingFloats { view, count })
     }
 
     /// Gives a view of [`Changes::add_floats_later`] its values, which must be as many as it
@@ -334,18 +331,25 @@ impl Changes {
         pending: PendingFloats,
         values: Vec<[f32; 4]>,
     ) -> Result<(), SceneError> {
-        let PendingFloats { view, count } = pending;
+        let PendingFloats { view } = pending;
         let Some(slot) = self.views.get_mut(view) else {
             return Err(SceneError::new(
                 ProblemCode::Internal,
                 format!("new view {view} to fill does not exist"),
             ));
         };
-        if values.len() != count {
+        let ViewData::Pending(len) = slot.data else {
+            return Err(SceneError::new(
+                ProblemCode::Internal,
+                format!("new view {view} was filled twice"),
+            ));
+        };
+        if values.len() * 16 != len {
             return Err(SceneError::new(
                 ProblemCode::Internal,
                 format!(
-                    "new view {view} was made for {count} values and given {}",
+                    "new view {view} was made for {} values and given {}",
+                    len / 16,
                     values.len()
                 ),
             ));
