@@ -507,7 +507,12 @@ async fn slow_work_times_out_with_504() {
     };
     let (running, base) = server(config).await;
     let response = post_tangents(&base, grid(300)).await;
-    problem(response, 504, "timeout").await;
+    let body = problem(response, 504, "timeout").await;
+    assert_eq!(
+        body["detail"],
+        json!("the scene took longer than 0.001 s"),
+        "the detail names the timeout as set"
+    );
     running.shutdown().await.unwrap();
 }
 

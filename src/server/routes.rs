@@ -461,8 +461,8 @@ where
             Err(Problem::new(
                 ProblemCode::Timeout,
                 format!(
-                    "the scene took longer than {} s",
-                    app.config.timeout.as_secs()
+                    "the scene took longer than {}",
+                    in_seconds(app.config.timeout)
                 ),
             ))
         }
@@ -470,6 +470,14 @@ where
         Ok(Ok(Err(panic))) => Err(internal(&panic.0)),
         Ok(Ok(Ok(result))) => Ok(result),
     }
+}
+
+/// A timeout as people write it: "30 s", "1.5 s", "0.02 s" (whole seconds printed alone, which
+/// printed a 20 ms timeout as "0 s").
+fn in_seconds(duration: std::time::Duration) -> String {
+    let fraction = format!("{:.3}", duration.as_secs_f64());
+    let trimmed = fraction.trim_end_matches('0').trim_end_matches('.');
+    format!("{trimmed} s")
 }
 
 fn internal(cause: &str) -> Problem {
@@ -808,6 +816,20 @@ mod tests {
     use super::*;
     use crate::config::ServerConfig;
     use tspace_tangent::Method;
+
+    #[test]
+    fn timeouts_read_in_seconds_with_their_fraction() {
+        use std::time::Duration;
+        for (duration, text) in [
+            (Duration::from_secs(30), "30 s"),
+            (Duration::from_millis(1500), "1.5 s"),
+            (Duration::from_millis(20), "0.02 s"),
+            (Duration::from_millis(1), "0.001 s"),
+            (Duration::from_secs(600), "600 s"),
+        ] {
+            assert_eq!(in_seconds(duration), text);
+        }
+    }
 
     #[tokio::test]
     async fn a_panicking_job_is_a_500_and_the_pool_serves_on() {
