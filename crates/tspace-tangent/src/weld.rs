@@ -824,12 +824,15 @@ impl CornerTable {
             corners.into_iter().map(AtomicU32::into_inner).collect()
         } else {
             let mut corners = vec![0u32; running as usize];
-            let next = &mut counts[0];
+            // Slices, not the vectors: through a `&mut Vec` the loop read the vector's pointer
+            // and length again after every store into `corners`, which it could not tell apart.
+            let (next, places) = (counts[0].as_mut_slice(), corners.as_mut_slice());
             for c in 0..corner_count {
                 let class = class_of(c);
                 if class != NONE {
-                    corners[next[class as usize] as usize] = c as u32;
-                    next[class as usize] += 1;
+                    let next = &mut next[class as usize];
+                    places[*next as usize] = c as u32;
+                    *next += 1;
                 }
             }
             corners
