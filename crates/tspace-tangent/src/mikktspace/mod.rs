@@ -1461,6 +1461,9 @@ const PREFETCH_AHEAD: usize = 16;
 const RUN_CORNERS: usize = 512;
 
 impl Run {
+    /// Out of line: inlined into the grouping, its loops ran short of registers and read their
+    /// pointers back from the stack.
+    #[inline(never)]
     fn gather(
         &mut self,
         context: &Context<'_>,
