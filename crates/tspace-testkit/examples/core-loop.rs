@@ -14,6 +14,11 @@
 //! The `tangents` bench fixes glibc's allocator thresholds so that every call reuses the last
 //! one's memory; to profile the core as the bench measures it, run this with
 //! `GLIBC_TUNABLES=glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=2147483647`.
+//!
+//! `CORE_LOOP_IDLE_MS=3` sleeps that long before every call, untimed, to measure a call as the
+//! service's worker makes it: after the milliseconds its request spent on the network, with
+//! the CPU idle. Back to back, every call finds the CPU running (see "Where the service's time
+//! goes" in docs/benchmarks.md).
 
 use std::time::Instant;
 use tspace_tangent::{MeshInput, Options, generate};
@@ -85,9 +90,21 @@ fn main() -> Result<(), String> {
         parallel,
         ..Options::default()
     };
+    let idle = match std::env::var("CORE_LOOP_IDLE_MS") {
+        Ok(ms) => {
+            let ms: f64 = ms
+                .parse()
+                .map_err(|e| format!("CORE_LOOP_IDLE_MS={ms}: {e}"))?;
+            Some(std::time::Duration::from_secs_f64(ms / 1e3))
+        }
+        Err(_) => None,
+    };
     let mut times = Vec::new();
     let start = Instant::now();
     while start.elapsed().as_secs_f64() < seconds {
+        if let Some(idle) = idle {
+            std::thread::sleep(idle);
+        }
         let t = Instant::now();
         let result = generate(&input, &options).map_err(|e| e.to_string())?;
         times.push(t.elapsed().as_secs_f64());
