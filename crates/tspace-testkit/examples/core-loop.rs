@@ -17,8 +17,8 @@
 //!
 //! `CORE_LOOP_IDLE_MS=3` sleeps that long before every call, untimed, to measure a call as the
 //! service's worker makes it: after the milliseconds its request spent on the network, with
-//! the CPU idle. Back to back, every call finds the CPU running (see "Where the service's time
-//! goes" in docs/benchmarks.md).
+//! the CPU idle. Back to back, every call finds the CPU running (see "A call after idle" in
+//! docs/benchmarks.md).
 
 use std::time::Instant;
 use tspace_tangent::{MeshInput, Options, generate};
@@ -92,10 +92,10 @@ fn main() -> Result<(), String> {
     };
     let idle = match std::env::var("CORE_LOOP_IDLE_MS") {
         Ok(ms) => {
-            let ms: f64 = ms
-                .parse()
-                .map_err(|e| format!("CORE_LOOP_IDLE_MS={ms}: {e}"))?;
-            Some(std::time::Duration::from_secs_f64(ms / 1e3))
+            let seconds = ms.parse::<f64>().map_err(|e| e.to_string()).and_then(|ms| {
+                std::time::Duration::try_from_secs_f64(ms / 1e3).map_err(|e| e.to_string())
+            });
+            Some(seconds.map_err(|e| format!("CORE_LOOP_IDLE_MS={ms}: {e}"))?)
         }
         Err(_) => None,
     };
