@@ -396,14 +396,21 @@ fn run_one(plan: &Plan, options: &SceneOptions, progress: &Progress) -> Outcome 
     }
 }
 
-/// Runs the files in parallel; outcomes stay in input order.
+/// Runs the files in parallel; outcomes stay in input order. One file runs on this thread: the
+/// scene layer spreads its own work over the threads, and a file that cannot be read then
+/// fails without starting them.
 fn run_all(plan: &[Plan], options: &SceneOptions, run: &RunArgs) -> Vec<Outcome> {
     let files = plan.iter().filter(|p| matches!(p, Plan::Run(..))).count();
     let progress = Progress::new(files, !run.quiet);
-    let outcomes = plan
-        .par_iter()
-        .map(|p| run_one(p, options, &progress))
-        .collect();
+    let outcomes = if plan.len() <= 1 {
+        plan.iter()
+            .map(|p| run_one(p, options, &progress))
+            .collect()
+    } else {
+        plan.par_iter()
+            .map(|p| run_one(p, options, &progress))
+            .collect()
+    };
     progress.finish();
     outcomes
 }
