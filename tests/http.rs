@@ -1471,3 +1471,43 @@ async fn the_page_is_served_with_its_own_files_only() {
     }
     running.shutdown().await.unwrap();
 }
+
+/// An answer given before the upload is read (an option the route does not take, a missing
+/// key) reaches a client still sending a body larger than the socket buffers, and the
+/// connection stays usable: closing it with the body unread would reset it under the answer.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_answer_before_the_upload_reaches_a_client_still_sending_it() {
+    let (dir, file) = key_file("unread", "key-for-ci\n");
+    let body = vec![b'#'; 24 * 1024 * 1024];
+    let (open, open_base) = server(ServerConfig::local()).await;
+    let (locked, locked_base) = server(ServerConfig {
+        api_keys_file: Some(file),
+        ..ServerConfig::local()
+    })
+    .await;
+    let http = client();
+    for round in 0..2 {
+        for (base, route, status, code) in [
+            (&open_base, "/v1/tangents?bogus=1", 400, "invalid-option"),
+            (&open_base, "/v1/analyze?method=none", 400, "invalid-option"),
+            (
+                &open_base,
+                "/v1/uv-layout?format=gif",
+                400,
+                "invalid-option",
+            ),
+            (&locked_base, "/v1/tangents", 401, "unauthorized"),
+        ] {
+            let response = http
+                .post(format!("{base}{route}"))
+                .body(body.clone())
+                .send()
+                .await
+                .unwrap_or_else(|e| panic!("{route}, round {round}: {e:?}"));
+            problem(response, status, code).await;
+        }
+    }
+    open.shutdown().await.unwrap();
+    locked.shutdown().await.unwrap();
+    drop(dir);
+}

@@ -143,7 +143,7 @@ async fn require_api_key(
         header::WWW_AUTHENTICATE,
         HeaderValue::from_static("Bearer realm=\"tspace\""),
     );
-    response
+    shed::answer_unread(&app, request, response, shed::Drain::WithinBudget).await
 }
 
 async fn record_metrics(

@@ -344,6 +344,11 @@ async fn read_upload_in_time(app: &App, request: Request) -> Result<Upload, Prob
     }
 }
 
+/// The answer to a request whose options are refused before its upload is read.
+async fn refuse_unread(app: &App, request: Request, problem: Problem) -> Response {
+    shed::answer_unread(app, request, problem.into_response(), shed::Drain::Always).await
+}
+
 /// Admits a scene request and reads its upload, or the answer when either cannot be had: the
 /// 503 of a refusal, or the problem with the body (one over the limit answered while the client
 /// may still be sending it).
@@ -554,7 +559,10 @@ pub async fn tangents(
     RawQuery(raw): RawQuery,
     request: Request,
 ) -> Result<Response, Problem> {
-    let query = parse_query(raw.as_deref())?;
+    let query = match parse_query(raw.as_deref()) {
+        Ok(query) => query,
+        Err(problem) => return Ok(refuse_unread(&app, request, problem).await),
+    };
     let multipart = wants_multipart(request.headers());
     let (upload, Admitted { permit, place }) = match accept(&app, request).await {
         Ok(accepted) => accepted,
@@ -657,7 +665,10 @@ pub async fn analyze(
     RawQuery(raw): RawQuery,
     request: Request,
 ) -> Result<Response, Problem> {
-    let query = parse_query(raw.as_deref())?;
+    let query = match parse_query(raw.as_deref()) {
+        Ok(query) => query,
+        Err(problem) => return Ok(refuse_unread(&app, request, problem).await),
+    };
     let (upload, Admitted { permit, place }) = match accept(&app, request).await {
         Ok(accepted) => accepted,
         Err(answer) => return Ok(*answer),
@@ -710,7 +721,10 @@ pub async fn uv_layout(
     RawQuery(raw): RawQuery,
     request: Request,
 ) -> Result<Response, Problem> {
-    let (scene_query, picture) = parse_picture_query(raw.as_deref())?;
+    let (scene_query, picture) = match parse_picture_query(raw.as_deref()) {
+        Ok(parsed) => parsed,
+        Err(problem) => return Ok(refuse_unread(&app, request, problem).await),
+    };
     let (upload, Admitted { permit, place }) = match accept(&app, request).await {
         Ok(accepted) => accepted,
         Err(answer) => return Ok(*answer),

@@ -117,9 +117,36 @@ pub async fn shed_when_saturated(
 /// either way. A client waiting for `100 Continue` (curl, for any body over 1 MiB) has sent no
 /// body, and is answered at once: its refusal costs both sides one round trip.
 pub async fn refuse(app: &App, request: Request) -> Response {
-    use http_body_util::BodyExt;
     app.metrics.reject("overloaded");
     app.refusals.log(Instant::now());
+    answer_unread(app, request, app.refusals.response(), Drain::WithinBudget).await
+}
+
+/// Whether the body of a request answered unread is drained whenever it fits the body limit,
+/// or only while the drain budget lasts.
+#[derive(Clone, Copy)]
+pub enum Drain {
+    /// A request that passed the door (its key, the service's capacity) with options the
+    /// route refuses: reading its body costs what reading it for the scene would have.
+    Always,
+    /// A request refused at the door: under a flood of them, reading every body would cost
+    /// the capacity the refusals protect.
+    WithinBudget,
+}
+
+/// `response` for a request answered before its body was read (a refusal, a missing key, an
+/// option the route does not take). Closing a connection that still holds unread bytes resets
+/// it, and the reset can overtake the answer: the client sees its upload fail instead of the
+/// problem. So the body is drained as `drain` allows, or else the connection lingers
+/// after the answer ([`closing_after_linger`]); a client waiting for `100 Continue` has sent no
+/// body, and is answered at once.
+pub async fn answer_unread(
+    app: &App,
+    request: Request,
+    mut response: Response,
+    drain: Drain,
+) -> Response {
+    use http_body_util::BodyExt;
     let headers = request.headers();
     let waits_for_continue = headers
         .get(header::EXPECT)
@@ -128,7 +155,6 @@ pub async fn refuse(app: &App, request: Request) -> Response {
         .get(header::CONTENT_LENGTH)
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.parse::<u64>().ok());
-    let mut response = app.refusals.response();
     if waits_for_continue {
         // Its body will not come: the connection ends with this answer (HTTP says to tell the
         // client so; hyper closes it either way, the body being unread).
@@ -138,7 +164,13 @@ pub async fn refuse(app: &App, request: Request) -> Response {
         return response;
     }
     let limit = app.config.body_limit;
-    let affordable = declared_length.is_some_and(|n| n <= limit as u64 && app.drain_budget.take(n));
+    let affordable = declared_length.is_some_and(|n| {
+        n <= limit as u64
+            && match drain {
+                Drain::Always => true,
+                Drain::WithinBudget => app.drain_budget.take(n),
+            }
+    });
     if affordable {
         let mut body = request.into_body();
         let drain = async { while let Some(Ok(_)) = body.frame().await {} };
