@@ -1507,6 +1507,25 @@ async fn an_answer_before_the_upload_reaches_a_client_still_sending_it() {
             problem(response, status, code).await;
         }
     }
+    // A chunked upload declares no length; it is drained up to the body limit all the same.
+    {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let mut stream = tokio::net::TcpStream::connect(open.addr).await.unwrap();
+        stream
+            .write_all(b"POST /v1/tangents?bogus=1 HTTP/1.1\r\nHost: t\r\nTransfer-Encoding: chunked\r\n\r\n")
+            .await
+            .unwrap();
+        let chunk = vec![b'#'; 1024 * 1024];
+        for _ in 0..24 {
+            stream.write_all(b"100000\r\n").await.unwrap();
+            stream.write_all(&chunk).await.unwrap();
+            stream.write_all(b"\r\n").await.unwrap();
+        }
+        stream.write_all(b"0\r\n\r\n").await.unwrap();
+        let mut head = [0u8; 12];
+        stream.read_exact(&mut head).await.unwrap();
+        assert_eq!(&head, b"HTTP/1.1 400");
+    }
     open.shutdown().await.unwrap();
     locked.shutdown().await.unwrap();
     drop(dir);

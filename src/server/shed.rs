@@ -163,19 +163,31 @@ pub async fn answer_unread(
             .insert(header::CONNECTION, HeaderValue::from_static("close"));
         return response;
     }
-    let limit = app.config.body_limit;
-    let affordable = declared_length.is_some_and(|n| {
-        n <= limit as u64
-            && match drain {
-                Drain::Always => true,
-                Drain::WithinBudget => app.drain_budget.take(n),
-            }
-    });
+    let limit = app.config.body_limit as u64;
+    // A chunked body declares no length: one that passed the door is drained up to the limit.
+    let affordable = match (declared_length, drain) {
+        (Some(n), _) if n > limit => false,
+        (Some(n), Drain::WithinBudget) => app.drain_budget.take(n),
+        (_, Drain::Always) => true,
+        (None, Drain::WithinBudget) => false,
+    };
     if affordable {
         let mut body = request.into_body();
-        let drain = async { while let Some(Ok(_)) = body.frame().await {} };
-        let _ = tokio::time::timeout(app.config.read_timeout, drain).await;
-        return response;
+        let drain = async {
+            let mut read = 0u64;
+            while let Some(frame) = body.frame().await {
+                let Ok(frame) = frame else { return false };
+                read += frame.data_ref().map_or(0, |data| data.len() as u64);
+                if read > limit {
+                    return false;
+                }
+            }
+            true
+        };
+        // A body cut off (over the limit, too slow, broken) still has bytes on their way.
+        if let Ok(true) = tokio::time::timeout(app.config.read_timeout, drain).await {
+            return response;
+        }
     }
     closing_after_linger(response)
 }
