@@ -277,7 +277,7 @@ async fn whole_body(body: Body, limit: usize, expected: usize) -> Result<Bytes, 
 }
 
 /// The `Content-Length` a request declares, if it declares one that reads as a number.
-fn content_length(headers: &HeaderMap) -> Option<u64> {
+pub(super) fn content_length(headers: &HeaderMap) -> Option<u64> {
     headers
         .get(header::CONTENT_LENGTH)
         .and_then(|v| v.to_str().ok())

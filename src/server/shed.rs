@@ -151,10 +151,7 @@ pub async fn answer_unread(
     let waits_for_continue = headers
         .get(header::EXPECT)
         .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
-    let declared_length = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok());
+    let declared_length = super::routes::content_length(headers);
     if waits_for_continue {
         // Its body will not come: the connection ends with this answer (HTTP says to tell the
         // client so; hyper closes it either way, the body being unread).
