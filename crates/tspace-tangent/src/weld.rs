@@ -497,8 +497,6 @@ trait Firsts {
     fn add(&mut self, key: &Key<'_>, v: usize);
     /// Whether vertex `v` equals the first vertex of `class`.
     fn same(&self, key: &Key<'_>, class: u32, v: usize) -> bool;
-    /// Asks for what [`Firsts::same`] will read of `class`, where it is worth asking.
-    fn prefetch(&self, class: u32);
 }
 
 /// The first vertex's index: comparing reads its attributes from the mesh. For meshes whose
@@ -523,10 +521,6 @@ impl Firsts for FirstVertices {
     fn same(&self, key: &Key<'_>, class: u32, v: usize) -> bool {
         key.equal(self.0[class as usize] as usize, v)
     }
-
-    /// Nothing: where vertices are mostly distinct, few slots hold a class to compare with.
-    #[inline]
-    fn prefetch(&self, _: u32) {}
 }
 
 /// A copy of the first vertex's key, for meshes that repeat most vertices (triangle soups):
@@ -554,13 +548,6 @@ impl Firsts for FirstKeys {
         // Combined without branching, as in `Key::equal`.
         a.iter().zip(b).fold(true, |same, (x, y)| same & (x == y))
     }
-
-    #[inline]
-    fn prefetch(&self, class: u32) {
-        if let Some(first) = self.0.get(class as usize) {
-            prefetch(first);
-        }
-    }
 }
 
 /// One hash table over all the vertices: for meshes small enough that it stays in cache.
@@ -579,13 +566,15 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>, salts: [u32; 8]) -> Weld {
     let mut firsts = F::for_vertices(vertex_count);
     let mut class_of_vertex = Vec::with_capacity(vertex_count);
     let mut class_count = 0u32;
-    // Three stages over blocks of vertices, each a block ahead of the next, so that a block's
-    // misses overlap the work on the blocks before it instead of holding up its own: (1) hash
-    // the block and prefetch its home slots; (2) where most vertices repeat, read those slots
-    // and prefetch the first key of the class each holds, the one the vertex will most likely
-    // be compared with; (3) probe and insert. (Prefetches rather than loads: a load that
-    // misses holds up everything after it until it arrives.) With one block in flight, the
-    // loads of stages 2 and 3 came right after the prefetches they waited on.
+    // Two stages over blocks of vertices, the first two blocks ahead of the second, so that a
+    // block's misses overlap the work on the blocks before it instead of holding up its own:
+    // (1) hash the block and prefetch its home slots; (2) probe and insert. (Prefetches rather
+    // than loads: a load that misses holds up everything after it until it arrives.) A stage
+    // between them that read the slots a block ahead, to prefetch the first key of the class
+    // each held, made a triangle soup's weld slower, not faster: a soup's first keys are the
+    // classes found most recently, still in cache, and the stage's loads of the slots waited
+    // on the prefetches just made (see "The soup weld without its middle stage" in
+    // docs/benchmarks.md).
     const BLOCK: usize = HASH_BLOCK;
     let block_count = vertex_count.div_ceil(BLOCK);
     let block_of = |b: usize| b * BLOCK..((b + 1) * BLOCK).min(vertex_count);
@@ -598,29 +587,12 @@ fn weld_in_one_table<F: Firsts>(key: &Key<'_>, salts: [u32; 8]) -> Weld {
             prefetch(&table[*slot]);
         }
     };
-    let ask_for_firsts =
-        |b: usize, home: &[(usize, u32); BLOCK], table: &[(u32, u32)], firsts: &F| {
-            if F::REPEATED {
-                for &(slot, _) in &home[..block_of(b).len()] {
-                    let (class, _) = table[slot];
-                    if class != NONE {
-                        firsts.prefetch(class);
-                    }
-                }
-            }
-        };
     for (b, home) in homes.iter_mut().enumerate().take(block_count.min(2)) {
         hash_block(b, home, &table);
-    }
-    if block_count > 0 {
-        ask_for_firsts(0, &homes[0], &table, &firsts);
     }
     for b in 0..block_count {
         if b + 2 < block_count {
             hash_block(b + 2, &mut homes[(b + 2) % 3], &table);
-        }
-        if b + 1 < block_count {
-            ask_for_firsts(b + 1, &homes[(b + 1) % 3], &table, &firsts);
         }
         for (v, &(mut slot, tag)) in block_of(b).zip(&homes[b % 3]) {
             // A vertex holding NaN equals no class, and gets a class of its own but no slot.
