@@ -278,7 +278,9 @@ const RUN: usize = 16384;
 /// Runs a per-triangle pass over every triangle: `batch` fills `out`'s items for each gathered
 /// batch of triangles, given scratch `S` of its own per run of triangles, and the diagnostics'
 /// triangle checks are tallied alongside. Runs of triangles go to the thread pool when
-/// `parallel`; the tallies are the same either way.
+/// `parallel`; the tallies are the same either way. A run is skipped, its items left as they
+/// were, only once `check.cancel` is set (the triangle pass's records rely on that: see
+/// `mikktspace::RecordSlots`); otherwise every item of `out` is handed to `batch`.
 pub(crate) fn per_triangle_pass<O: PerTriangle, S: Default>(
     mesh: &Mesh<'_>,
     check: &TriangleCheck<'_>,

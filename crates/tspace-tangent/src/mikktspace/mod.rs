@@ -40,7 +40,6 @@
 use super::acos::acos_slice;
 use super::diagnostics::{Diagnostics, FallbackCounts, TriangleCheck};
 use super::fallback::{self, Problem};
-use super::fill::{Zeroable, zeroed};
 use super::math::{
     Mesh, UNASSIGNED, add, dot, encode, is_finite3, length, normalize_or_zero,
     normalize_or_zero_branchless, not_zero, reject, same_position, scale, sub,
@@ -52,6 +51,7 @@ use super::triangles::{BATCH, TriangleColumns, per_triangle_pass};
 use super::vectors::widest_vectors;
 use super::weld::{CornerTable, NONE, weld_mesh};
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 const DEGENERATE: u8 = 1;
 const GROUP_WITH_ANY: u8 = 2;
@@ -134,15 +134,19 @@ fn generate_laid_out(
     let class_count = weld.class_count;
     drop(weld);
     let mut flags = vec![0u8; triangle_count];
-    // Written in order, by the triangle pass, for every triangle; or, per piece, later.
+    // Written in order, by the triangle pass, for every triangle; or, per piece, later. Never
+    // zeroed first: every place is written before it is read (see `RecordSlots`).
     let mut whole = Vec::new();
     let triangles = match layout {
         Layout::Whole => {
-            whole = zeroed::<[Contribution; 3]>(triangle_count);
+            whole.reserve_exact(triangle_count);
             per_triangle_pass(
                 mesh,
                 check,
-                (&mut whole[..], &mut flags[..]),
+                (
+                    &mut whole.spare_capacity_mut()[..triangle_count],
+                    &mut flags[..],
+                ),
                 parallel,
                 |columns: &mut Box<FrameColumns>, triangles, (contributions, flags)| {
                     columns.compute(mesh, triangles, check, contributions, flags);
@@ -161,6 +165,12 @@ fn generate_laid_out(
     };
     if cancelled() {
         return SplitPlan::default();
+    }
+    if layout == Layout::Whole {
+        // SAFETY: the triangle pass wrote the records of every triangle: it skips a run of
+        // triangles only once the computation is cancelled, and cancelling cannot be undone,
+        // so `cancelled()` would have returned above.
+        unsafe { whole.set_len(triangle_count) };
     }
     let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
 
@@ -200,8 +210,14 @@ fn generate_laid_out(
             // work: the whole array is computed instead.
             let spanned: usize = spans.iter().map(|s| s.len()).sum();
             if spanned > triangle_count + triangle_count / 4 + pieces.len() * BATCH {
-                whole = zeroed::<[Contribution; 3]>(triangle_count);
-                record_all(mesh, &mut whole, parallel);
+                whole.reserve_exact(triangle_count);
+                record_all(
+                    mesh,
+                    &mut whole.spare_capacity_mut()[..triangle_count],
+                    parallel,
+                );
+                // SAFETY: `record_all` writes the records of every triangle.
+                unsafe { whole.set_len(triangle_count) };
                 (pieces, Vec::new())
             } else {
                 (pieces, spans)
@@ -345,6 +361,21 @@ impl Records<'_> {
     }
 }
 
+/// Places for triangles' records, written by the passes that compute them before anything reads
+/// them. The whole array of a mesh's records is not zeroed first: in a process that reuses its
+/// memory (the service, the bench), the allocator's zeroing of that array was 1.3–3% of the call
+/// (see "Records without zeroing" in docs/benchmarks.md).
+type RecordSlots = [MaybeUninit<[Contribution; 3]>];
+
+/// Records already made, as places to write new ones into.
+fn as_slots(records: &mut [[Contribution; 3]]) -> &mut RecordSlots {
+    // SAFETY: `MaybeUninit<T>` has the layout of `T`, so the slice is the same memory read as
+    // the other type. Writing through it leaves the records initialized: the only writers of
+    // `RecordSlots` (the functions that take them) store whole records, never an uninitialized
+    // value.
+    unsafe { &mut *(std::ptr::from_mut(records) as *mut RecordSlots) }
+}
+
 /// A thread's buffer for a piece's records, and the columns it computes them in.
 #[derive(Default)]
 struct PieceRecords {
@@ -364,7 +395,7 @@ impl PieceRecords {
         record_triangles(
             mesh,
             span.start,
-            records,
+            as_slots(records),
             &mut self.triangles,
             &mut self.columns,
         );
@@ -375,11 +406,11 @@ impl PieceRecords {
     }
 }
 
-/// The records of the triangles from `first` on, one per place of `out`.
+/// The records of the triangles from `first` on, one per place of `out`, each written.
 fn record_triangles(
     mesh: &Mesh<'_>,
     first: usize,
-    out: &mut [[Contribution; 3]],
+    out: &mut RecordSlots,
     triangles: &mut TriangleColumns,
     columns: &mut FrameColumns,
 ) {
@@ -389,11 +420,11 @@ fn record_triangles(
     }
 }
 
-/// Every triangle's records into `out`, in runs of triangles on the thread pool when
-/// `parallel`.
-fn record_all(mesh: &Mesh<'_>, out: &mut [[Contribution; 3]], parallel: bool) {
+/// Every triangle's records into `out`, each place written, in runs of triangles on the thread
+/// pool when `parallel`.
+fn record_all(mesh: &Mesh<'_>, out: &mut RecordSlots, parallel: bool) {
     const RUN: usize = 16384;
-    let run = |(k, out): (usize, &mut [[Contribution; 3]])| {
+    let run = |(k, out): (usize, &mut RecordSlots)| {
         let mut triangles = TriangleColumns::default();
         let mut columns = Box::<FrameColumns>::default();
         record_triangles(mesh, k * RUN, out, &mut triangles, &mut columns);
@@ -482,7 +513,7 @@ impl FrameColumns {
             mesh: &Mesh<'_>,
             triangles: &mut TriangleColumns,
             check: &TriangleCheck<'_>,
-            contributions: &mut [[Contribution; 3]],
+            contributions: &mut RecordSlots,
             flags: &mut [u8],
         ) => compute_portable
     }
@@ -494,7 +525,7 @@ impl FrameColumns {
             &mut self,
             mesh: &Mesh<'_>,
             triangles: &mut TriangleColumns,
-            contributions: &mut [[Contribution; 3]],
+            contributions: &mut RecordSlots,
         ) => records_portable
     }
 
@@ -504,7 +535,7 @@ impl FrameColumns {
         mesh: &Mesh<'_>,
         triangles: &mut TriangleColumns,
         check: &TriangleCheck<'_>,
-        contributions: &mut [[Contribution; 3]],
+        contributions: &mut RecordSlots,
         flags: &mut [u8],
     ) {
         self.records_portable(mesh, triangles, contributions);
@@ -518,7 +549,7 @@ impl FrameColumns {
         &mut self,
         mesh: &Mesh<'_>,
         triangles: &mut TriangleColumns,
-        contributions: &mut [[Contribution; 3]],
+        contributions: &mut RecordSlots,
     ) {
         triangles.gather_normals(mesh, &mut self.normal);
         let lanes = triangles.lanes();
@@ -615,7 +646,7 @@ impl FlagColumns {
 
 /// Copies a batch's contributions (`weighted[corner][axis][k]`, `directions[corner][axis][k]`)
 /// out of their columns into `out`, one record per corner, for the batch's first `out.len()`
-/// triangles. Done one value at a time, this interleaving was a fifth of the triangle pass; with
+/// triangles (up to `BATCH`), writing each of their places. Done one value at a time, this interleaving was a fifth of the triangle pass; with
 /// AVX2 it is a transpose of four columns into records, eight corners at a time (AVX-512 would
 /// do sixteen, but its intrinsics need a newer compiler than the crate asks for, and the records
 /// are stored one by one either way).
@@ -623,7 +654,7 @@ impl FlagColumns {
 fn store_contributions(
     weighted: &[[[f32; BATCH]; 3]; 3],
     directions: &[[[f32; BATCH]; 3]; 3],
-    out: &mut [[Contribution; 3]],
+    out: &mut RecordSlots,
 ) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
@@ -639,24 +670,21 @@ fn store_contributions(
 fn store_contributions_portable(
     weighted: &[[[f32; BATCH]; 3]; 3],
     directions: &[[[f32; BATCH]; 3]; 3],
-    out: &mut [[Contribution; 3]],
+    out: &mut RecordSlots,
 ) {
     for (k, out) in out.iter_mut().enumerate().take(BATCH) {
-        *out = [0, 1, 2].map(|corner| {
+        out.write([0, 1, 2].map(|corner| {
             let [wx, wy, wz] = &weighted[corner];
             let [tx, ty, tz] = &directions[corner];
             Contribution {
                 weighted_s: [wx[k], wy[k], wz[k]],
                 t_direction: [tx[k] as i8, ty[k] as i8, tz[k] as i8, 0],
             }
-        });
+        }));
     }
 }
 
 const _: () = assert!(std::mem::size_of::<Contribution>() == 16 && BATCH % 8 == 0);
-
-// SAFETY: floats and bytes, without padding; zero bytes are `Contribution::ZERO`.
-unsafe impl Zeroable for Contribution {}
 
 /// [`store_contributions`] with AVX2.
 #[cfg(target_arch = "x86_64")]
@@ -664,7 +692,7 @@ unsafe impl Zeroable for Contribution {}
 unsafe fn store_contributions_avx2(
     weighted: &[[[f32; BATCH]; 3]; 3],
     directions: &[[[f32; BATCH]; 3]; 3],
-    out: &mut [[Contribution; 3]],
+    out: &mut RecordSlots,
 ) {
     use std::arch::x86_64::*;
     let len = out.len().min(BATCH);
@@ -2029,9 +2057,9 @@ mod tests {
             for len in [1, 2, 3, 4, 5, 15, 16, 17, 31, 32, 33, 48, 63, 64] {
                 let mut portable = vec![[Contribution::ZERO; 3]; len];
                 let mut avx2 = vec![[Contribution::ZERO; 3]; len];
-                store_contributions_portable(&weighted, &directions, &mut portable);
+                store_contributions_portable(&weighted, &directions, as_slots(&mut portable));
                 // SAFETY: the CPU was just found to support AVX2.
-                unsafe { store_contributions_avx2(&weighted, &directions, &mut avx2) };
+                unsafe { store_contributions_avx2(&weighted, &directions, as_slots(&mut avx2)) };
                 assert_eq!(bits(&portable), bits(&avx2), "batch of {len}");
             }
         }
@@ -2217,7 +2245,7 @@ mod tests {
         let test_mesh = TestMesh::new(13, |_| {});
         let mesh = test_mesh.mesh();
         let mut records = vec![[Contribution::ZERO; 3]; mesh.triangle_count()];
-        record_all(&mesh, &mut records, false);
+        record_all(&mesh, as_slots(&mut records), false);
         let bits = |c: &Contribution| (c.weighted_s.map(f32::to_bits), c.t_direction);
         for (corner, record) in records.as_flattened().iter().enumerate() {
             let again = Records::NONE.get(&mesh, corner);
