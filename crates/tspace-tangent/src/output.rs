@@ -186,7 +186,11 @@ impl<'a> SharedSplit<'a> {
         let vertex_count = self.vertex_tangents.len();
         let added: usize = parts.iter().map(|p| p.source.len()).sum();
         let mut source_vertex: Vec<u32> = Vec::with_capacity(vertex_count + added);
-        source_vertex.extend(0..vertex_count as u32);
+        if self.parallel {
+            source_vertex.par_extend((0..vertex_count as u32).into_par_iter());
+        } else {
+            source_vertex.extend(0..vertex_count as u32);
+        }
         let mut vertex_tangents = into_floats(self.vertex_tangents);
         vertex_tangents.reserve(added);
         // Where no vertex was added, every corner keeps its vertex: the input's indices stand.
@@ -223,7 +227,43 @@ impl<'a> SharedSplit<'a> {
             flips.add(v);
         }
 
+        // One pass over the vertices, on the thread pool: it gives vertices no triangle uses a
+        // valid tangent, and finds which handedness the others have. (A separate scan for the
+        // second, one thread reading every tangent while the others waited, was 2% of a 2M-
+        // triangle sphere's two-thread call.) A `w` of zero is neither handedness: only a vertex
+        // no triangle uses has one by now (every corner put gets ±1), and counted as the other,
+        // one unused vertex sent a 2M-triangle sphere through the pass over the corners below
+        // for nothing. The tangents given here are read by no corner, so that pass, which comes
+        // after, sees what it would have before.
+        let settle = |seen: (bool, bool), (tangent, normal): (&mut [f32; 4], &[f32; 3])| {
+            let w = tangent[3];
+            if w == 0.0 {
+                // Vertices no triangle uses still need a valid tangent in the output.
+                let n = unit(*normal).unwrap_or([0.0, 0.0, 1.0]);
+                let t = any_orthogonal(n);
+                *tangent = [t[0], t[1], t[2], 1.0];
+            }
+            (seen.0 | (w > 0.0), seen.1 | (w < 0.0))
+        };
+        let either = |a: (bool, bool), b: (bool, bool)| (a.0 | b.0, a.1 | b.1);
+        let (inputs, copies) = vertex_tangents.split_at_mut(vertex_count);
+        let seen = if self.parallel {
+            inputs
+                .par_iter_mut()
+                .zip(normals)
+                .fold(|| (false, false), settle)
+                .reduce(|| (false, false), either)
+        } else {
+            inputs.iter_mut().zip(normals).fold((false, false), settle)
+        };
+        // The copies have tangents of their own, none unused.
+        let seen = copies.iter().fold(seen, |(positive, negative), t| {
+            (positive | (t[3] > 0.0), negative | (t[3] < 0.0))
+        });
+
         // Triangles whose corners got tangents of different handedness, by runs of triangles.
+        // Where every tangent has the same handedness, as in a mesh without mirrored texture
+        // coordinates, no triangle can mix them, and the corners are not read.
         const RUN: usize = 16384;
         let mixed_in = |(run, corners): (usize, &[u32])| {
             let mut mixed = Tally::default();
@@ -235,22 +275,6 @@ impl<'a> SharedSplit<'a> {
             }
             mixed
         };
-        // Where every tangent has the same handedness, as in a mesh without mirrored texture
-        // coordinates, no triangle can mix them: one pass over the vertices spares one over
-        // the corners reading a tangent for each.
-        // (Blocks, each a vector pass, so that a mesh that has both stops looking early.) A `w`
-        // of zero is neither: only a vertex no triangle uses has one by now (every corner put
-        // gets ±1), and counted as the other handedness, as it was, one unused vertex sent a
-        // 2M-triangle sphere through the pass over the corners for nothing.
-        let mut seen = (false, false);
-        for block in vertex_tangents.chunks(1024) {
-            seen = block.iter().fold(seen, |(positive, negative), t| {
-                (positive | (t[3] > 0.0), negative | (t[3] < 0.0))
-            });
-            if seen.0 && seen.1 {
-                break;
-            }
-        }
         let corner_vertices = indices.as_deref().unwrap_or(self.indices);
         let runs: Vec<Tally> = if !(seen.0 && seen.1) {
             Vec::new()
@@ -270,25 +294,6 @@ impl<'a> SharedSplit<'a> {
         let mut mixed = Tally::default();
         for run in &runs {
             mixed.append(run);
-        }
-        let give_unused_a_tangent = |(tangent, normal): (&mut [f32; 4], &[f32; 3])| {
-            if tangent[3] == 0.0 {
-                // Vertices no triangle uses still need a valid tangent in the output.
-                let n = unit(*normal).unwrap_or([0.0, 0.0, 1.0]);
-                let t = any_orthogonal(n);
-                *tangent = [t[0], t[1], t[2], 1.0];
-            }
-        };
-        if self.parallel {
-            vertex_tangents
-                .par_iter_mut()
-                .zip(normals)
-                .for_each(give_unused_a_tangent);
-        } else {
-            vertex_tangents
-                .iter_mut()
-                .zip(normals)
-                .for_each(give_unused_a_tangent);
         }
         diagnostics.handedness_flip_vertices = flips;
         diagnostics.mixed_handedness_triangles = mixed;

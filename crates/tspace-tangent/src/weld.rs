@@ -11,6 +11,7 @@ use super::prefetch::prefetch;
 use super::vectors::widest_vectors;
 use rayon::prelude::*;
 use std::borrow::Cow;
+use std::mem::MaybeUninit;
 use std::ops::Range;
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -650,11 +651,11 @@ pub(crate) fn weld_mesh(mesh: &Mesh<'_>, finite: bool, parallel: bool) -> Weld {
 
 /// Turns `counts[block][class]` into each block's first place in each class, classes after one
 /// another and blocks in order within a class, from place `start` on; `offsets` takes each class's
-/// first place. Returns the place after the last.
-fn lay_out<C: AsMut<[u32]>>(counts: &mut [C], offsets: &mut [u32], start: u32) -> u32 {
+/// first place, each of its places written. Returns the place after the last.
+fn lay_out<C: AsMut<[u32]>>(counts: &mut [C], offsets: &mut [MaybeUninit<u32>], start: u32) -> u32 {
     let mut running = start;
     for (class, offset) in offsets.iter_mut().enumerate() {
-        *offset = running;
+        offset.write(running);
         for block in counts.iter_mut() {
             let place = &mut block.as_mut()[class];
             (*place, running) = (running, running + *place);
@@ -703,7 +704,7 @@ const LAY_OUT_CLASSES: usize = 1 << 15;
 /// [`lay_out`] from place 0, on the thread pool: each piece of classes is summed, the sums give
 /// each piece its first place, and the pieces are laid out side by side. (On one thread, the
 /// layout of a mesh of a million vertices took 2–4 ms, where the passes around it are shared.)
-fn lay_out_in_parallel(counts: &mut [Vec<u32>], offsets: &mut [u32]) -> u32 {
+fn lay_out_in_parallel(counts: &mut [Vec<u32>], offsets: &mut [MaybeUninit<u32>]) -> u32 {
     let pieces = offsets.len().div_ceil(LAY_OUT_CLASSES);
     let sums: Vec<u32> = (0..pieces)
         .into_par_iter()
@@ -780,13 +781,19 @@ impl CornerTable {
         } else {
             vec![count_block(0)]
         };
-        let mut offsets = vec![0u32; class_count + 1];
+        // Not zeroed first: the layout writes every class's place, and the end is written
+        // after it (the allocator's zeroing was on the one thread the others waited for).
+        let mut offsets: Vec<u32> = Vec::with_capacity(class_count + 1);
+        let places = &mut offsets.spare_capacity_mut()[..class_count + 1];
         let running = if blocks > 1 {
-            lay_out_in_parallel(&mut counts, &mut offsets[..class_count])
+            lay_out_in_parallel(&mut counts, &mut places[..class_count])
         } else {
-            lay_out(&mut counts, &mut offsets[..class_count], 0)
+            lay_out(&mut counts, &mut places[..class_count], 0)
         };
-        offsets[class_count] = running;
+        places[class_count].write(running);
+        // SAFETY: `lay_out` and `lay_out_in_parallel` write every place they are given, and
+        // the last was written just above.
+        unsafe { offsets.set_len(class_count + 1) };
 
         let corners = if blocks > 1 {
             let corners: Vec<AtomicU32> = filled(running as usize, true, || AtomicU32::new(0));

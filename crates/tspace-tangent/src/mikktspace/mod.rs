@@ -133,7 +133,9 @@ fn generate_laid_out(
     // made (4 bytes a vertex off the peak).
     let class_count = weld.class_count;
     drop(weld);
-    let mut flags = vec![0u8; triangle_count];
+    // Written by the triangle pass, for every triangle, and never zeroed first (see
+    // `RecordSlots`), as the records are.
+    let mut flags: Vec<u8> = Vec::with_capacity(triangle_count);
     // Written in order, by the triangle pass, for every triangle; or, per piece, later. Never
     // zeroed first: every place is written before it is read (see `RecordSlots`).
     let mut whole = Vec::new();
@@ -145,7 +147,7 @@ fn generate_laid_out(
                 check,
                 (
                     &mut whole.spare_capacity_mut()[..triangle_count],
-                    &mut flags[..],
+                    &mut flags.spare_capacity_mut()[..triangle_count],
                 ),
                 parallel,
                 |columns: &mut Box<FrameColumns>, triangles, (contributions, flags)| {
@@ -156,7 +158,7 @@ fn generate_laid_out(
         Layout::Pieces { .. } => per_triangle_pass(
             mesh,
             check,
-            &mut flags[..],
+            &mut flags.spare_capacity_mut()[..triangle_count],
             parallel,
             |columns: &mut FlagColumns, triangles, flags| {
                 columns.compute(triangles, check, flags);
@@ -166,13 +168,20 @@ fn generate_laid_out(
     if cancelled() {
         return SplitPlan::default();
     }
+    // SAFETY: the triangle pass wrote the flags of every triangle, and in the whole layout
+    // their records: it skips a run of triangles only once the computation is cancelled, and
+    // cancelling cannot be undone, so `cancelled()` would have returned above.
+    unsafe { flags.set_len(triangle_count) };
     if layout == Layout::Whole {
-        // SAFETY: the triangle pass wrote the records of every triangle: it skips a run of
-        // triangles only once the computation is cancelled, and cancelling cannot be undone,
-        // so `cancelled()` would have returned above.
+        // SAFETY: as for the flags.
         unsafe { whole.set_len(triangle_count) };
     }
-    let has_degenerate = flags.iter().any(|&f| f & DEGENERATE != 0);
+    // By blocks, each folded whole: `any` over the bytes, a loop that may stop at each, does not
+    // run as a vector loop, and on a 2M-triangle mesh it took a millisecond while the other
+    // threads waited.
+    let has_degenerate = flags
+        .chunks(1 << 12)
+        .any(|block| block.iter().fold(0, |any, &f| any | f) & DEGENERATE != 0);
 
     // Nearly every mesh has no degenerate triangle: its table is built without reading a
     // triangle's flags for each corner.
@@ -367,6 +376,19 @@ impl Records<'_> {
 /// (see "Records without zeroing" in docs/benchmarks.md).
 type RecordSlots = [MaybeUninit<[Contribution; 3]>];
 
+/// Places for triangles' flags, written by the triangle pass before any is read, as the
+/// records' are (the allocator's zeroing of them and of the corner table's offsets took about
+/// 2 ms of a 2M-triangle sphere's 97 ms two-thread call, on the thread the others waited for).
+type FlagSlots = [MaybeUninit<u8>];
+
+/// Writes `flags` into `out`, place by place.
+#[inline(always)]
+fn write_flags(out: &mut FlagSlots, flags: &[u8]) {
+    for (out, &flag) in out.iter_mut().zip(flags) {
+        out.write(flag);
+    }
+}
+
 /// Records already made, as places to write new ones into.
 fn as_slots(records: &mut [[Contribution; 3]]) -> &mut RecordSlots {
     // SAFETY: `MaybeUninit<T>` has the layout of `T`, so the slice is the same memory read as
@@ -514,7 +536,7 @@ impl FrameColumns {
             triangles: &mut TriangleColumns,
             check: &TriangleCheck<'_>,
             contributions: &mut RecordSlots,
-            flags: &mut [u8],
+            flags: &mut FlagSlots,
         ) => compute_portable
     }
 
@@ -536,12 +558,12 @@ impl FrameColumns {
         triangles: &mut TriangleColumns,
         check: &TriangleCheck<'_>,
         contributions: &mut RecordSlots,
-        flags: &mut [u8],
+        flags: &mut FlagSlots,
     ) {
         self.records_portable(mesh, triangles, contributions);
         triangles.check(check);
         let len = contributions.len().min(BATCH);
-        flags[..len].copy_from_slice(&self.flags[..len]);
+        write_flags(&mut flags[..len], &self.flags[..len]);
     }
 
     #[inline(always)]
@@ -623,7 +645,7 @@ impl FlagColumns {
             &mut self,
             triangles: &mut TriangleColumns,
             check: &TriangleCheck<'_>,
-            flags: &mut [u8],
+            flags: &mut FlagSlots,
         ) => compute_portable
     }
 
@@ -632,7 +654,7 @@ impl FlagColumns {
         &mut self,
         triangles: &mut TriangleColumns,
         check: &TriangleCheck<'_>,
-        flags: &mut [u8],
+        flags: &mut FlagSlots,
     ) {
         for k in 0..triangles.lanes() {
             let (p, uv) = triangles.corners(k);
@@ -640,7 +662,7 @@ impl FlagColumns {
         }
         triangles.check(check);
         let len = flags.len().min(BATCH);
-        flags[..len].copy_from_slice(&self.flags[..len]);
+        write_flags(&mut flags[..len], &self.flags[..len]);
     }
 }
 
