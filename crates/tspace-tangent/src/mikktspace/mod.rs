@@ -133,11 +133,10 @@ fn generate_laid_out(
     // made (4 bytes a vertex off the peak).
     let class_count = weld.class_count;
     drop(weld);
-    // Written by the triangle pass, for every triangle, and never zeroed first (see
-    // `RecordSlots`), as the records are.
+    // The flags, and the records, are written in order by the triangle pass for every
+    // triangle (the records, per piece, may be written later instead). Neither is zeroed
+    // first: every place is written before it is read (see `RecordSlots`, `FlagSlots`).
     let mut flags: Vec<u8> = Vec::with_capacity(triangle_count);
-    // Written in order, by the triangle pass, for every triangle; or, per piece, later. Never
-    // zeroed first: every place is written before it is read (see `RecordSlots`).
     let mut whole = Vec::new();
     let triangles = match layout {
         Layout::Whole => {
