@@ -4,7 +4,9 @@
  * it is written (sync_file_range), so that the rename has no dirty pages left to flush; MODE 2
  * holds the previous output open across the rename and times its close (where its blocks are
  * freed); MODE 3 writes over the previous output in place instead (truncated on open, as
- * gltfpack and glTF-Transform write), with no temporary file and no rename. Run it in a
+ * gltfpack and glTF-Transform write), with no temporary file and no rename; MODE 4 is MODE 1
+ * with a third thread that, as the writes begin, drops the previous output's pages from the page
+ * cache (posix_fadvise POSIX_FADV_DONTNEED), so that the rename does not free them. Run it in a
  * directory on the file system to measure; it writes DIR/replace-probe.out.
  * docs/benchmarks.md, "The whole process on this machine", quotes it.
  *
@@ -34,6 +36,21 @@ static double now(void) {
     return t.tv_sec + t.tv_nsec * 1e-9;
 }
 
+static const char *previous_output;
+static double dropped_ms;
+
+static void *drop_previous_pages(void *unused) {
+    (void)unused;
+    double start = now();
+    int previous = open(previous_output, O_RDONLY);
+    if (previous >= 0) {
+        posix_fadvise(previous, 0, 0, POSIX_FADV_DONTNEED);
+        close(previous);
+    }
+    dropped_ms = (now() - start) * 1e3;
+    return NULL;
+}
+
 static void *start_writeback(void *unused) {
     (void)unused;
     long started = 0;
@@ -52,7 +69,7 @@ static void *start_writeback(void *unused) {
 
 int main(int argc, char **argv) {
     if (argc != 3) {
-        fprintf(stderr, "usage: %s DIR MODE(0|1|2|3)\n", argv[0]);
+        fprintf(stderr, "usage: %s DIR MODE(0|1|2|3|4)\n", argv[0]);
         return 2;
     }
     int mode = atoi(argv[2]);
@@ -68,8 +85,12 @@ int main(int argc, char **argv) {
         perror(target);
         return 1;
     }
-    pthread_t helper;
-    if (mode == 1) {
+    pthread_t helper, dropper;
+    if (mode == 4) {
+        previous_output = output;
+        pthread_create(&dropper, NULL, drop_previous_pages, NULL);
+    }
+    if (mode == 1 || mode == 4) {
         pthread_create(&helper, NULL, start_writeback, NULL);
     }
     for (long at = 0; at < SIZE; at += CHUNK) {
@@ -81,8 +102,12 @@ int main(int argc, char **argv) {
     }
     atomic_store(&finished, 1);
     double wrote = now();
-    if (mode == 1) {
+    if (mode == 1 || mode == 4) {
         pthread_join(helper, NULL);
+    }
+    if (mode == 4) {
+        pthread_join(dropper, NULL);
+        printf("previous output's pages dropped in %.1f ms; ", dropped_ms);
     }
     close(fd);
     if (mode == 3) {

@@ -145,6 +145,8 @@ fn read_file(path: &Path, length: u64) -> std::io::Result<FileBytes> {
 /// A path that is there and is neither a file nor a folder (`/dev/null`, `/dev/stdout`, a named
 /// pipe, a shell's `>(…)`) is written as it is: renaming a file over it would replace the device
 /// or pipe, and as root `--report /dev/null` replaced the machine's `/dev/null` with a file.
+///
+/// The previous file's cached pages are dropped first (see [`writeback::drop_cached_pages`]).
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
@@ -156,6 +158,9 @@ pub fn write_atomically(
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;
     }
+    // The file replaced is never an input: `paths::check` refuses an output named as an input,
+    // and another name for an input's file gives it a second link, which the drop leaves alone.
+    writeback::drop_cached_pages(path);
     let mut name = std::ffi::OsString::from(".");
     name.push(path.file_name().unwrap_or_default());
     name.push(format!(".tspace-tmp-{}", std::process::id()));

@@ -140,6 +140,47 @@ impl Write for ChunkedWriter<'_, '_, '_> {
     }
 }
 
+/// Drops from the page cache the pages of the file `path` names, which the caller is about to
+/// replace, so that the new output's pages can be the old one's instead of memory the machine
+/// has not touched lately. The rename frees those pages anyway, but only once the new file has
+/// been written beside them.
+///
+/// On this project's machines (virtual machines whose host backs guest memory only once it is
+/// used, and takes back memory the guest has left free for a while), a write into pages of such
+/// memory ran at 0.4 GB/s, against 5 GB/s into pages freed a moment before: 20 ms against 1.6 ms
+/// for each 8 MiB of the whole-path bench's 72 MB output. Measured on that sphere, 14 interleaved
+/// runs of `tspace process` over their previous outputs, half a second apart: a median of 174 ms
+/// (107–333) without the drop and 116 ms (110–159) with it. Where memory is real, the drop only
+/// moves the freeing of those pages earlier.
+///
+/// Only for a regular file of one link and at least [`CHUNK`]: another name for the same file
+/// still needs its pages, and a small file's are not worth the calls. Pages mapped by a process
+/// stay, and dirty pages are not dropped (the kernel starts their writeback instead: wasted
+/// where another program wrote the old file moments ago and never flushed it, since a file
+/// replaced is thrown away unwritten; tspace's own outputs have had their writeback started).
+#[cfg(target_os = "linux")]
+pub(super) fn drop_cached_pages(path: &std::path::Path) {
+    use std::os::fd::AsRawFd;
+    use std::os::unix::fs::MetadataExt;
+    let Ok(old) = File::open(path) else {
+        return;
+    };
+    let Ok(metadata) = old.metadata() else {
+        return;
+    };
+    if !metadata.is_file() || metadata.nlink() != 1 || metadata.len() < CHUNK {
+        return;
+    }
+    // SAFETY: the descriptor is that of `old`, open for the whole call, and the call takes no
+    // memory of ours: only numbers. It is advice; where it fails, the rename frees the pages.
+    unsafe {
+        libc::posix_fadvise(old.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED);
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+pub(super) fn drop_cached_pages(_: &std::path::Path) {}
+
 /// Starts the writeback of `length` bytes of `file` from `offset`, waiting for no disk. A hint:
 /// where it fails, the rename starts them as before.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
@@ -257,5 +298,69 @@ mod tests {
             assert_eq!(out.announced, if AVAILABLE { CHUNK } else { 0 });
         });
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// How many of the file's pages are in the page cache, by `mincore` over a map of it.
+    #[cfg(target_os = "linux")]
+    fn resident_pages(path: &std::path::Path) -> usize {
+        let file = File::open(path).expect("readable");
+        // SAFETY: a read-only map of this test's own file, which nothing writes meanwhile.
+        let map = unsafe { memmap2::Mmap::map(&file) }.expect("mapped");
+        let page = 4096;
+        let mut resident = vec![0u8; map.len().div_ceil(page)];
+        // SAFETY: `resident` has a byte for each page of the map, which stays mapped for the
+        // call; mincore only writes those bytes.
+        let status = unsafe {
+            libc::mincore(
+                map.as_ptr() as *mut libc::c_void,
+                map.len(),
+                resident.as_mut_ptr(),
+            )
+        };
+        assert_eq!(status, 0, "mincore");
+        resident.iter().filter(|&&r| r & 1 != 0).count()
+    }
+
+    /// A replaced output's clean pages leave the cache; a file with a second name keeps them,
+    /// and so does one below a chunk. Where the file system keeps clean pages whatever it is
+    /// advised (tmpfs holds its files only there), as a control file advised directly shows,
+    /// the test says so and checks nothing.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_replaced_outputs_pages_are_dropped_unless_it_has_another_name() {
+        use std::os::fd::AsRawFd;
+        let dir = scratch("drop");
+        let write_synced = |name: &str, len: usize| {
+            let path = dir.join(name);
+            let mut file = File::create(&path).expect("a new file");
+            file.write_all(&vec![7u8; len]).expect("written");
+            file.sync_all()
+                .expect("on disk, so that its pages are clean");
+            path
+        };
+        let big = CHUNK as usize + 4096;
+        let control = write_synced("control", big);
+        let control_before = resident_pages(&control);
+        let file = File::open(&control).expect("readable");
+        // SAFETY: the descriptor is `file`'s, open for the call, which takes only numbers.
+        unsafe { libc::posix_fadvise(file.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED) };
+        if resident_pages(&control) > control_before / 2 {
+            let _ = std::fs::remove_dir_all(&dir);
+            eprintln!("skipped: this file system keeps the pages of a file advised to drop them");
+            return;
+        }
+        let lone = write_synced("lone", big);
+        let linked = write_synced("linked", big);
+        std::fs::hard_link(&linked, dir.join("second-name")).expect("a second link");
+        let small = write_synced("small", 64 << 10);
+        let before = [&lone, &linked, &small].map(|p| resident_pages(p));
+        for path in [&lone, &linked, &small] {
+            drop_cached_pages(path);
+        }
+        let after = [&lone, &linked, &small].map(|p| resident_pages(p));
+        let _ = std::fs::remove_dir_all(&dir);
+        assert!(after[0] < before[0] / 2, "{before:?} -> {after:?}");
+        assert_eq!(after[1], before[1], "a file with two names keeps its pages");
+        assert_eq!(after[2], before[2], "a file below a chunk keeps its pages");
     }
 }
