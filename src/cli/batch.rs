@@ -146,7 +146,7 @@ fn read_file(path: &Path, length: u64) -> std::io::Result<FileBytes> {
 /// pipe, a shell's `>(…)`) is written as it is: renaming a file over it would replace the device
 /// or pipe, and as root `--report /dev/null` replaced the machine's `/dev/null` with a file.
 ///
-/// The previous file's cached pages are dropped first (see [`writeback::drop_cached_pages`]).
+/// The previous file's cached pages are dropped first (see `writeback::drop_cached_pages`).
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,

@@ -16,6 +16,9 @@
 //!
 //! Where `sync_file_range` is not available (outside Linux with glibc), outputs are written
 //! as before.
+//!
+//! Before that, the output being replaced gives back its cached pages
+//! ([`drop_cached_pages`]), so that the new file is written into them.
 
 use std::fs::File;
 use std::io::{IoSlice, Write};
