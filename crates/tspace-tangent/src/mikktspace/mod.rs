@@ -129,6 +129,12 @@ fn generate_laid_out(
 
     // The class of every corner; degenerate triangles stay out of the per-vertex lists.
     let corner_class = weld.corner_classes(mesh.indices, parallel);
+    // Which classes hold more than one input vertex, where any two vertices welded. The rest
+    // have one, whose tangent the one-group shortcut sets without reading its corners'
+    // vertices. Those were gathered for every corner of such a mesh: DamagedHelmet, whose 200
+    // duplicate vertices among 14,556 made the whole mesh pay for it, was about 6% slower.
+    let several_vertices = (weld.class_count != mesh.vertex_count())
+        .then(|| weld.classes_with_several_vertices(parallel));
     // The vertices' classes are not read again: let them go before the largest arrays are
     // made (4 bytes a vertex off the peak).
     let class_count = weld.class_count;
@@ -239,7 +245,7 @@ fn generate_laid_out(
     let context = Context {
         mesh,
         corner_class: &corner_class,
-        classes_are_vertices: class_count == mesh.vertex_count(),
+        several_vertices: several_vertices.as_deref(),
         table: &table,
         shared: &shared,
         flip_w,
@@ -890,9 +896,10 @@ fn exact_record(mesh: &Mesh<'_>, corner: usize) -> Contribution {
 struct Context<'a> {
     mesh: &'a Mesh<'a>,
     corner_class: &'a [u32],
-    /// Whether no two vertices welded, so that a class is the one input vertex of that number
-    /// (and `corner_class` is the index buffer).
-    classes_are_vertices: bool,
+    /// Which classes hold more than one input vertex; `None` where no two vertices welded, so
+    /// that a class is the one input vertex of that number (and `corner_class` is the index
+    /// buffer).
+    several_vertices: Option<&'a [bool]>,
     table: &'a CornerTable,
     shared: &'a SharedSplit<'a>,
     flip_w: bool,
@@ -1024,7 +1031,6 @@ impl Context<'_> {
                         any & ORIENT_PRESERVING,
                         &run.ends[slots.clone()],
                         &run.contributions[slots.start..],
-                        &run.vertices[slots],
                         degenerate,
                         &mut piece.repairs,
                         put,
@@ -1064,7 +1070,6 @@ impl Context<'_> {
         orientation: u8,
         ends: &[[u32; 2]],
         records: &[Contribution],
-        vertices: &[u32],
         degenerate: &[(u32, u32)],
         repairs: &mut Vec<(u32, Problem)>,
         put: &mut P,
@@ -1090,21 +1095,23 @@ impl Context<'_> {
             return false;
         };
         let raw = encode(normalize_or_zero(sum), orientation != 0);
-        let first_vertex = if self.classes_are_vertices {
-            class
-        } else {
-            vertices[0] as usize
+        let indices = self.mesh.indices;
+        // The class's input vertex, where it has one; else its first corner's.
+        let (first_vertex, one_vertex) = match self.several_vertices {
+            None => (class, true),
+            Some(several) => (indices[corners[0] as usize] as usize, !several[class]),
         };
         let normal = self.mesh.normals[first_vertex];
         if fallback::check_normal(normal).is_some_and(|n| fallback::passes(&raw, &n)) {
             // Valid: every corner gets the same finished tangent, and no other vertex has
             // corners of these input vertices, so each is given it once, as its only tangent.
             let tangent = fallback::with_w_convention(raw, self.flip_w);
-            if self.classes_are_vertices {
-                self.shared.set_only_tangent(class, tangent);
+            if one_vertex {
+                self.shared.set_only_tangent(first_vertex, tangent);
             } else {
                 let mut previous = NONE;
-                for &vertex in vertices {
+                for &corner in corners {
+                    let vertex = indices[corner as usize];
                     if vertex != previous {
                         self.shared.set_only_tangent(vertex as usize, tangent);
                         previous = vertex;
@@ -1498,8 +1505,6 @@ struct Run {
     ends: Vec<[u32; 2]>,
     /// Its triangle's flags.
     flags: Vec<u8>,
-    /// Its input vertex, where classes are not the input vertices themselves.
-    vertices: Vec<u32>,
 }
 
 /// How many corners ahead [`Run::gather`] asks for a corner's record: enough to cover a miss
@@ -1527,20 +1532,10 @@ impl Run {
             self.contributions.resize(len + 3, Contribution::ZERO);
             self.ends.resize(len, [0; 2]);
             self.flags.resize(len, 0);
-            self.vertices.resize(len, 0);
         }
         let contributions = &mut self.contributions[..len];
         let ends = &mut self.ends[..len];
         let corner_flags = &mut self.flags[..len];
-        if !context.classes_are_vertices {
-            let indices = context.mesh.indices;
-            for (at, (vertex, &corner)) in self.vertices.iter_mut().zip(corners).enumerate() {
-                if let Some(&ahead) = corners.get(at + PREFETCH_AHEAD) {
-                    prefetch(&indices[ahead as usize]);
-                }
-                *vertex = indices[corner as usize];
-            }
-        }
         // The records as one array of corners (a triangle's three are contiguous), so that a
         // corner's record and a prefetch of one ahead need no division by three. Two loops, the
         // records first: in one, the pointers it needed did not fit in registers.
