@@ -114,6 +114,35 @@ pub(crate) fn check_normal(n: [f32; 3]) -> Option<NormalCheck> {
     })
 }
 
+/// [`check_normal`] without a branch, for a loop over many normals to run as a vector loop: the
+/// tolerance it sets against the normal as it is, and whether it does (in the rare other case,
+/// a normal too short or too long to test as it is, it normalizes it first).
+#[inline(always)]
+pub(crate) fn normal_tolerance(n: [f32; 3]) -> (f32, bool) {
+    let len2 = dot(n, n);
+    let nearly_unit = is_nearly_unit(n);
+    let scaled = 0.9 * ORTHOGONAL_TOLERANCE * len2.sqrt();
+    let tolerance = if nearly_unit {
+        ORTHOGONAL_TOLERANCE
+    } else {
+        scaled
+    };
+    (tolerance, nearly_unit | ((1e-20..=1e20).contains(&len2)))
+}
+
+/// [`passes`] for a tangent whose `w` is ±1 against `normal` at the `tolerance` of
+/// [`normal_tolerance`], as one expression without a branch (the same tests: a finite tangent
+/// has a finite squared length, and no comparison after the first meets NaN).
+#[inline(always)]
+pub(crate) fn passes_within(t: [f32; 3], normal: [f32; 3], tolerance: f32) -> bool {
+    let finite = t[0].is_finite() & t[1].is_finite() & t[2].is_finite();
+    let len2 = dot(t, t);
+    finite
+        & (len2 >= 1e-12)
+        & ((len2 - 1.0).abs() <= 2.0 * UNIT_TOLERANCE)
+        & (dot(t, normal).abs() <= tolerance)
+}
+
 /// The common case, decided without normalizing anything per corner.
 #[inline]
 pub(crate) fn passes(tangent: &[f32; 4], check: &NormalCheck) -> bool {
@@ -324,6 +353,31 @@ mod tests {
             let Some(vertex) = check_normal(n) else { return Ok(()) };
             if passes(&tangent, &vertex) {
                 prop_assert_eq!(check(&tangent, unit(n).unwrap()), None);
+            }
+        }
+
+        /// The test without branches decides as `check_normal` and `passes` do, for every
+        /// normal it takes as it is (nearly unit, or of any length the check scales its
+        /// tolerance by), and tangents on both sides of the tolerance.
+        #[test]
+        fn the_branchless_test_decides_as_the_normal_check(
+            n in prop::array::uniform3(-3.0f32..3.0),
+            scale_exponent in -12i32..12,
+            seed in prop::array::uniform3(-1.0f32..1.0),
+            tilt in -6e-5f32..6e-5,
+            stretch in 0.999_99f32..1.000_01,
+        ) {
+            let n = scale(n, 2f32.powi(scale_exponent));
+            let Some(t) = near_orthogonal(n, seed, tilt) else { return Ok(()) };
+            let t = [t[0] * stretch, t[1] * stretch, t[2] * stretch];
+            for normal in [n, unit(n).unwrap_or(n)] {
+                let (tolerance, as_it_is) = normal_tolerance(normal);
+                if !as_it_is {
+                    continue;
+                }
+                let corner = [t[0], t[1], t[2], 1.0];
+                let expected = check_normal(normal).is_some_and(|c| passes(&corner, &c));
+                prop_assert_eq!(passes_within(t, normal, tolerance), expected);
             }
         }
     }

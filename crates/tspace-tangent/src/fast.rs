@@ -255,6 +255,135 @@ impl VertexSums {
     }
 }
 
+/// Vertices whose tangents [`FinishColumns`] computes at once.
+const FINISH_LANES: usize = 16;
+
+/// Each vertex's tangent on one side, a block of vertices at a time in columns: the steps of
+/// [`VertexSums::tangent`], lane by lane (so the same bits), for vertices whose normal the check
+/// takes as it is, as nearly all are. One vertex at a time, its chain of a square root, a division and
+/// the checks after them was a third of DamagedHelmet's call (about 40 cycles a vertex), and
+/// nothing else was there for the CPU to overlap it with.
+struct FinishColumns {
+    normal: [[f32; FINISH_LANES]; 3],
+    s: [[f32; FINISH_LANES]; 3],
+    t: [[f32; FINISH_LANES]; 3],
+    /// The side taken (0 preserving, 1 mirrored), which decides `w` where the frame does not.
+    side: [u32; FINISH_LANES],
+    /// Each lane's tangent as a whole, read back one vertex at a time.
+    tangent: [[f32; 4]; FINISH_LANES],
+    valid: [bool; FINISH_LANES],
+    /// Whether the normal is tested as it is, so that the lane's result stands.
+    lane_ok: [bool; FINISH_LANES],
+}
+
+impl Default for FinishColumns {
+    fn default() -> FinishColumns {
+        FinishColumns {
+            normal: [[0.0; FINISH_LANES]; 3],
+            s: [[0.0; FINISH_LANES]; 3],
+            t: [[0.0; FINISH_LANES]; 3],
+            side: [0; FINISH_LANES],
+            tangent: [[0.0; 4]; FINISH_LANES],
+            valid: [false; FINISH_LANES],
+            lane_ok: [false; FINISH_LANES],
+        }
+    }
+}
+
+impl FinishColumns {
+    /// Places the tangent of `side` of `sums` in lane `k`.
+    #[inline(always)]
+    fn put(&mut self, k: usize, sums: &VertexSums, side: usize, mesh: &Mesh<'_>) {
+        // An empty vertex takes no tangent; its lane computes one from zeros, not read.
+        let normal = mesh
+            .normals
+            .get(sums.first_vertex as usize)
+            .copied()
+            .unwrap_or([0.0; 3]);
+        let (s, t) = (sums.s[side].to_array(), sums.t[side].to_array());
+        for axis in 0..3 {
+            self.normal[axis][k] = normal[axis];
+            self.s[axis][k] = s[axis];
+            self.t[axis][k] = t[axis];
+        }
+        self.side[k] = side as u32;
+    }
+
+    /// Lane `k`'s tangent and whether it is valid, if its normal let the columns decide.
+    #[inline(always)]
+    fn get(&self, k: usize) -> Option<([f32; 4], bool)> {
+        self.lane_ok[k].then(|| (self.tangent[k], self.valid[k]))
+    }
+
+    widest_vectors! {
+        /// Every lane's tangent, as [`VertexSums::tangent`] makes it.
+        fn compute / compute_avx512 / compute_avx2 (&mut self) => compute_portable
+    }
+
+    #[inline(always)]
+    fn compute_portable(&mut self) {
+        for k in 0..FINISH_LANES {
+            let n = [self.normal[0][k], self.normal[1][k], self.normal[2][k]];
+            let s = [self.s[0][k], self.s[1][k], self.s[2][k]];
+            let t = [self.t[0][k], self.t[1][k], self.t[2][k]];
+            // `s - normal * normal.dot(s)`, then the reference's normalization.
+            let d = dot(n, s);
+            let tangent =
+                normalize_or_zero_branchless([s[0] - n[0] * d, s[1] - n[1] * d, s[2] - n[2] * d]);
+            let handedness = dot(cross(n, tangent), t);
+            let preserving = (handedness > 0.0) | ((handedness == 0.0) & (self.side[k] == 0));
+            let w = if preserving { 1.0 } else { -1.0 };
+            self.tangent[k] = [tangent[0], tangent[1], tangent[2], w];
+            let (tolerance, tested_as_it_is) = fallback::normal_tolerance(n);
+            self.valid[k] = fallback::passes_within(tangent, n, tolerance);
+            self.lane_ok[k] = tested_as_it_is;
+        }
+    }
+}
+
+/// Each vertex's tangents on the sides its corners take, and where they take one side and its
+/// tangent is valid, the finished tangent into `uniform`: the side a vertex takes alone (or
+/// side 0) in [`FinishColumns`], the second side of a vertex on a mirror seam and any vertex
+/// whose normal must be normalized for its check one by one.
+fn finish_sums(
+    sums: &[VertexSums],
+    mesh: &Mesh<'_>,
+    flip_w: bool,
+    uniform: &mut [[f32; 4]],
+) -> Vec<([[f32; 4]; 2], [bool; 2])> {
+    let mut finished = Vec::with_capacity(sums.len());
+    let mut columns = FinishColumns::default();
+    for (block, uniform) in sums
+        .chunks(FINISH_LANES)
+        .zip(uniform.chunks_mut(FINISH_LANES))
+    {
+        let first_side = |sums: &VertexSums| usize::from(sums.sides_taken() == 0b10);
+        for (k, sums) in block.iter().enumerate() {
+            columns.put(k, sums, first_side(sums), mesh);
+        }
+        columns.compute();
+        for (k, (sums, uniform)) in block.iter().zip(uniform).enumerate() {
+            let mut tangents = ([[0.0; 4]; 2], [false; 2]);
+            let taken = sums.sides_taken();
+            let first = first_side(sums);
+            for side in 0..2 {
+                if taken & (1 << side) != 0 {
+                    let computed = if side == first { columns.get(k) } else { None };
+                    (tangents.0[side], tangents.1[side]) =
+                        computed.unwrap_or_else(|| sums.tangent(side, mesh));
+                }
+            }
+            if let Some(side) = sums.only_side()
+                && tangents.1[side]
+            {
+                *uniform = fallback::with_w_convention(tangents.0[side], flip_w);
+            }
+            finished.push(tangents);
+        }
+    }
+    finished
+}
+
 /// Fast tangents as a split plan: invalid ones repaired (counted in `diagnostics`), `w` negated
 /// when `flip_w` is set.
 ///
@@ -322,25 +451,7 @@ fn generate_by_triangle(
     // corners take one side and that tangent is valid, the finished tangent every corner gets
     // (`w == 0` elsewhere, never the `w` of a finished tangent).
     let mut uniform = vec![[0.0f32; 4]; sums.len()];
-    let finished: Vec<([[f32; 4]; 2], [bool; 2])> = sums
-        .iter()
-        .zip(&mut uniform)
-        .map(|(sums, uniform)| {
-            let mut finished = ([[0.0; 4]; 2], [false; 2]);
-            let taken = sums.sides_taken();
-            for side in 0..2 {
-                if taken & (1 << side) != 0 {
-                    (finished.0[side], finished.1[side]) = sums.tangent(side, mesh);
-                }
-            }
-            if let Some(side) = sums.only_side()
-                && finished.1[side]
-            {
-                *uniform = fallback::with_w_convention(finished.0[side], flip_w);
-            }
-            finished
-        })
-        .collect();
+    let finished = finish_sums(&sums, mesh, flip_w, &mut uniform);
 
     let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), false);
     let mut copies = Copies::default();
@@ -489,5 +600,89 @@ mod tests {
         }
         assert!(worst < 7.5e-5, "{worst}");
         assert_eq!(acos_approx(f32::NAN), 0.0);
+    }
+
+    /// The columns give every vertex the bits, and the verdict, that `VertexSums::tangent` gives
+    /// it one at a time: vertices with one side, both sides, unsigned corners and none; normals
+    /// nearly unit, a little off, far off, zero, tiny, huge and NaN; sums that cancel in the
+    /// normal's plane or vanish, and signed zeros; over a count that leaves a partial block.
+    #[test]
+    fn finished_columns_match_the_vertex_by_vertex_tangent() {
+        let mut random = crate::test_support::xorshift(0x510e_527f_ade6_82d1);
+        let value = |r: u64| -> f32 {
+            match r % 11 {
+                0 => 0.0,
+                1 => -0.0,
+                2 => 1e-30,
+                3 => 1e25,
+                _ => ((r >> 8) % 2001) as f32 / 1000.0 - 1.0,
+            }
+        };
+        let count = 5 * FINISH_LANES + 3;
+        let mut normals = Vec::with_capacity(count);
+        let mut sums = Vec::with_capacity(count);
+        for v in 0..count {
+            let r = random();
+            let direction = [value(random()), value(random()), value(random())];
+            let normal = match r % 9 {
+                0 => [0.0; 3],
+                1 => [f32::NAN, 0.0, 1.0],
+                2 => crate::math::scale(direction, 1e-12),
+                3 => crate::math::scale(direction, 3.0),
+                4 => [0.0, 0.0, 1.0 + 3e-7],
+                _ => crate::math::unit(direction).unwrap_or([0.0, 1.0, 0.0]),
+            };
+            normals.push(normal);
+            let mut vertex = VertexSums::EMPTY;
+            if r % 13 != 0 {
+                vertex.first_vertex = v as u32;
+                vertex.sides_used = [1, 2, 3][(r >> 4) as usize % 3];
+                vertex.unsigned = (r >> 6) % 5 == 0;
+                for side in 0..2 {
+                    let s = [value(random()), value(random()), value(random())];
+                    vertex.s[side] = if (r >> 9) % 7 == side as u64 {
+                        // Along the normal: nothing left in its plane.
+                        Vec3::from(crate::math::scale(normal, 2.0))
+                    } else {
+                        Vec3::from(s)
+                    };
+                    vertex.t[side] =
+                        Vec3::from([value(random()), value(random()), value(random())]);
+                }
+            }
+            sums.push(vertex);
+        }
+        let positions = vec![[0.0f32; 3]; count];
+        let indices: Vec<u32> = Vec::new();
+        let mesh = Mesh {
+            positions: &positions,
+            normals: &normals,
+            uvs: None,
+            indices: &indices,
+        };
+        for flip_w in [false, true] {
+            let mut uniform = vec![[0.0f32; 4]; count];
+            let finished = finish_sums(&sums, &mesh, flip_w, &mut uniform);
+            for (v, vertex) in sums.iter().enumerate() {
+                let taken = vertex.sides_taken();
+                let mut expected = ([[0.0f32; 4]; 2], [false; 2]);
+                for side in 0..2 {
+                    if taken & (1 << side) != 0 {
+                        (expected.0[side], expected.1[side]) = vertex.tangent(side, &mesh);
+                    }
+                }
+                let bits = |t: &[[f32; 4]; 2]| t.map(|t| t.map(f32::to_bits));
+                assert_eq!(bits(&finished[v].0), bits(&expected.0), "vertex {v}");
+                assert_eq!(finished[v].1, expected.1, "vertex {v}");
+                let only = vertex.only_side().filter(|&side| expected.1[side]);
+                let expected_uniform = only.map_or([0.0; 4], |side| {
+                    fallback::with_w_convention(expected.0[side], flip_w)
+                });
+                assert_eq!(
+                    uniform[v].map(f32::to_bits),
+                    expected_uniform.map(f32::to_bits)
+                );
+            }
+        }
     }
 }

@@ -19,9 +19,11 @@
 //! service's worker makes it: after the milliseconds its request spent on the network, with
 //! the CPU idle. Back to back, every call finds the CPU running (see "A call after idle" in
 //! docs/benchmarks.md).
+//!
+//! `CORE_LOOP_METHOD=fast` (or `axis`) runs that method instead of MikkTSpace.
 
 use std::time::Instant;
-use tspace_tangent::{MeshInput, Options, generate};
+use tspace_tangent::{MeshInput, Method, Options, generate};
 
 struct Mesh {
     positions: Vec<[f32; 3]>,
@@ -86,8 +88,14 @@ fn main() -> Result<(), String> {
         uvs: Some(&mesh.uvs),
         indices: Some(&mesh.indices),
     };
+    let method = match std::env::var("CORE_LOOP_METHOD") {
+        Ok(name) => Method::from_name(&name)
+            .ok_or_else(|| format!("CORE_LOOP_METHOD={name}: not a method"))?,
+        Err(_) => Method::default(),
+    };
     let options = Options {
         parallel,
+        method,
         ..Options::default()
     };
     let idle = match std::env::var("CORE_LOOP_IDLE_MS") {
