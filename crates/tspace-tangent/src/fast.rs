@@ -259,10 +259,10 @@ impl VertexSums {
 const FINISH_LANES: usize = 16;
 
 /// Each vertex's tangent on one side, a block of vertices at a time in columns: the steps of
-/// [`VertexSums::tangent`], lane by lane (so the same bits), for vertices whose normal the check
-/// takes as it is, as nearly all are. One vertex at a time, its chain of a square root, a division and
-/// the checks after them was a third of DamagedHelmet's call (about 40 cycles a vertex), and
-/// nothing else was there for the CPU to overlap it with.
+/// [`VertexSums::tangent`], lane by lane (so the same bits), for vertices whose normal the
+/// check takes as it is, as nearly all are. One vertex at a time, its chain of a square root,
+/// a division and the checks after them was a third of DamagedHelmet's call (about 40 cycles a
+/// vertex), and nothing else was there for the CPU to overlap it with.
 struct FinishColumns {
     normal: [[f32; FINISH_LANES]; 3],
     s: [[f32; FINISH_LANES]; 3],
