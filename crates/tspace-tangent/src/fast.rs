@@ -357,15 +357,15 @@ fn finish_sums(
         .chunks(FINISH_LANES)
         .zip(uniform.chunks_mut(FINISH_LANES))
     {
-        let first_side = |sums: &VertexSums| usize::from(sums.sides_taken() == 0b10);
         for (k, sums) in block.iter().enumerate() {
-            columns.put(k, sums, first_side(sums), mesh);
+            let first = usize::from(sums.sides_taken() == 0b10);
+            columns.put(k, sums, first, mesh);
         }
         columns.compute();
         for (k, (sums, uniform)) in block.iter().zip(uniform).enumerate() {
             let mut tangents = ([[0.0; 4]; 2], [false; 2]);
             let taken = sums.sides_taken();
-            let first = first_side(sums);
+            let first = columns.side[k] as usize;
             for side in 0..2 {
                 if taken & (1 << side) != 0 {
                     let computed = if side == first { columns.get(k) } else { None };
