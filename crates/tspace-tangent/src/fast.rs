@@ -341,38 +341,55 @@ impl FinishColumns {
     }
 }
 
-/// Each vertex's tangents on the sides its corners take, and where they take one side and its
-/// tangent is valid, the finished tangent into `uniform`: the side a vertex takes alone (or
-/// side 0) in [`FinishColumns`], the second side of a vertex on a mirror seam and any vertex
-/// whose normal must be normalized for its check one by one.
+/// A vertex's tangents and verdicts on its two sides (only the sides its corners take are set).
+type SideTangents = ([[f32; 4]; 2], [bool; 2]);
+
+/// The tangents of the vertices of `block` (at most [`FINISH_LANES`]) on the sides their
+/// corners take: the side a vertex takes alone (or side 0) in `columns`, the second side of a
+/// vertex on a mirror seam and any vertex whose normal must be normalized for its check one by
+/// one.
+#[inline(always)]
+fn finish_block(
+    columns: &mut FinishColumns,
+    block: &[VertexSums],
+    mesh: &Mesh<'_>,
+    finished: &mut [SideTangents; FINISH_LANES],
+) {
+    for (k, sums) in block.iter().enumerate() {
+        let first = usize::from(sums.sides_taken() == 0b10);
+        columns.put(k, sums, first, mesh);
+    }
+    columns.compute();
+    for (k, (sums, tangents)) in block.iter().zip(finished.iter_mut()).enumerate() {
+        let taken = sums.sides_taken();
+        let first = columns.side[k] as usize;
+        for side in 0..2 {
+            if taken & (1 << side) != 0 {
+                let computed = if side == first { columns.get(k) } else { None };
+                (tangents.0[side], tangents.1[side]) =
+                    computed.unwrap_or_else(|| sums.tangent(side, mesh));
+            }
+        }
+    }
+}
+
+/// Each vertex's tangents on the sides its corners take ([`finish_block`]), and where they take
+/// one side and its tangent is valid, the finished tangent into `uniform`.
 fn finish_sums(
     sums: &[VertexSums],
     mesh: &Mesh<'_>,
     flip_w: bool,
     uniform: &mut [[f32; 4]],
-) -> Vec<([[f32; 4]; 2], [bool; 2])> {
+) -> Vec<SideTangents> {
     let mut finished = Vec::with_capacity(sums.len());
     let mut columns = FinishColumns::default();
+    let mut tangents = [([[0.0; 4]; 2], [false; 2]); FINISH_LANES];
     for (block, uniform) in sums
         .chunks(FINISH_LANES)
         .zip(uniform.chunks_mut(FINISH_LANES))
     {
-        for (k, sums) in block.iter().enumerate() {
-            let first = usize::from(sums.sides_taken() == 0b10);
-            columns.put(k, sums, first, mesh);
-        }
-        columns.compute();
-        for (k, (sums, uniform)) in block.iter().zip(uniform).enumerate() {
-            let mut tangents = ([[0.0; 4]; 2], [false; 2]);
-            let taken = sums.sides_taken();
-            let first = columns.side[k] as usize;
-            for side in 0..2 {
-                if taken & (1 << side) != 0 {
-                    let computed = if side == first { columns.get(k) } else { None };
-                    (tangents.0[side], tangents.1[side]) =
-                        computed.unwrap_or_else(|| sums.tangent(side, mesh));
-                }
-            }
+        finish_block(&mut columns, block, mesh, &mut tangents);
+        for ((sums, uniform), &tangents) in block.iter().zip(uniform).zip(&tangents) {
             if let Some(side) = sums.only_side()
                 && tangents.1[side]
             {
@@ -521,54 +538,86 @@ fn generate_by_vertex(
 
     let shared = SharedSplit::new(mesh.indices, mesh.vertex_count(), parallel);
     // Per class: accumulate each handedness apart, then give every corner the sum of its side.
-    let evaluate =
-        |class: usize, repairs: &mut Vec<(u32, Problem)>, put: &mut dyn FnMut(usize, [f32; 4])| {
-            let corners = table.of(class);
-            let mut sums = VertexSums::EMPTY;
-            for &corner in corners {
-                let corner = corner as usize;
-                sums.add(&faces[corner / 3], corner % 3, mesh.indices[corner]);
-            }
+    let sum_class = |class: usize| {
+        let mut sums = VertexSums::EMPTY;
+        for &corner in table.of(class) {
+            let corner = corner as usize;
+            sums.add(&faces[corner / 3], corner % 3, mesh.indices[corner]);
+        }
+        sums
+    };
+    // The classes of a block, summed, are finished together (see `FinishColumns`), then written
+    // in order, so that copies are made in the order of the classes as one by one.
+    let write_block = |classes: &[u32],
+                       block: &[VertexSums],
+                       columns: &mut FinishColumns,
+                       repairs: &mut Vec<(u32, Problem)>,
+                       put: &mut dyn FnMut(usize, [f32; 4])| {
+        let mut finished = [([[0.0; 4]; 2], [false; 2]); FINISH_LANES];
+        finish_block(columns, block, mesh, &mut finished);
+        for ((&class, sums), &(tangents, valid)) in classes.iter().zip(block).zip(&finished) {
+            let corners = table.of(class as usize);
             // Most vertices: every corner takes one side, and its tangent is valid. Each input
             // vertex of the class is given it with a plain store, as on one thread, without
             // reading the corners' faces again or the vertices' slots.
-            if let Some(side) = sums.only_side() {
-                let (t, valid) = sums.tangent(side, mesh);
-                if valid {
-                    let t = fallback::with_w_convention(t, flip_w);
-                    let mut previous = NONE;
-                    for &corner in corners {
-                        let vertex = mesh.indices[corner as usize];
-                        if vertex != previous {
-                            shared.set_only_tangent(vertex as usize, t);
-                            previous = vertex;
-                        }
+            if let Some(side) = sums.only_side()
+                && valid[side]
+            {
+                let t = fallback::with_w_convention(tangents[side], flip_w);
+                let mut previous = NONE;
+                for &corner in corners {
+                    let vertex = mesh.indices[corner as usize];
+                    if vertex != previous {
+                        shared.set_only_tangent(vertex as usize, t);
+                        previous = vertex;
                     }
-                    return;
                 }
+                continue;
             }
-            // At most two tangents per vertex, one per side, each worked out once.
-            let mut finished: [Option<([f32; 4], bool)>; 2] = [None; 2];
             for &corner in corners {
                 let corner = corner as usize;
                 let side = sums.side_of(faces[corner / 3].sign);
-                let (t, valid) = *finished[side].get_or_insert_with(|| sums.tangent(side, mesh));
                 put(
                     corner,
-                    fallback::finish_corner(mesh, corner, t, valid, flip_w, repairs),
+                    fallback::finish_corner(
+                        mesh,
+                        corner,
+                        tangents[side],
+                        valid[side],
+                        flip_w,
+                        repairs,
+                    ),
                 );
             }
-        };
+        }
+    };
 
     let run = |range: std::ops::Range<usize>| {
         let mut copies = Copies::default();
         let mut repairs = Vec::new();
         let mut put = |c: usize, t: [f32; 4]| shared.put(&mut copies, c, t);
+        let mut columns = FinishColumns::default();
+        let mut classes = [0u32; FINISH_LANES];
+        let mut block = [VertexSums::EMPTY; FINISH_LANES];
+        let mut len = 0;
         for class in range {
-            if !table.of(class).is_empty() {
-                evaluate(class, &mut repairs, &mut put);
+            if table.of(class).is_empty() {
+                continue;
+            }
+            (classes[len], block[len]) = (class as u32, sum_class(class));
+            len += 1;
+            if len == FINISH_LANES {
+                write_block(&classes, &block, &mut columns, &mut repairs, &mut put);
+                len = 0;
             }
         }
+        write_block(
+            &classes[..len],
+            &block[..len],
+            &mut columns,
+            &mut repairs,
+            &mut put,
+        );
         (copies, repairs)
     };
     let results: Vec<(Copies, Vec<(u32, Problem)>)> = table
