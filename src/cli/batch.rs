@@ -146,8 +146,7 @@ fn read_file(path: &Path, length: u64) -> std::io::Result<FileBytes> {
 /// pipe, a shell's `>(…)`) is written as it is: renaming a file over it would replace the device
 /// or pipe, and as root `--report /dev/null` replaced the machine's `/dev/null` with a file.
 ///
-/// The previous file's cached pages are dropped as the new one is written (see
-/// `writeback::ReplacedFile`).
+/// The previous file's cached pages are dropped first (see `writeback::drop_cached_pages`).
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
@@ -161,14 +160,13 @@ pub fn write_atomically(
     }
     // The file replaced is never an input: `paths::check` refuses an output named as an input,
     // and another name for an input's file gives it a second link, which the drop leaves alone.
-    let replaced = writeback::ReplacedFile::at(path);
+    writeback::drop_cached_pages(path);
     let mut name = std::ffi::OsString::from(".");
     name.push(path.file_name().unwrap_or_default());
     name.push(format!(".tspace-tmp-{}", std::process::id()));
     let temporary = path.with_file_name(name);
-    let result = std::fs::File::create(&temporary).and_then(|file| {
-        writeback::write_then(file, replaced, write, || std::fs::rename(&temporary, path))
-    });
+    let result = std::fs::File::create(&temporary)
+        .and_then(|file| writeback::write_then(file, write, || std::fs::rename(&temporary, path)));
     if result.is_err() {
         let _ = std::fs::remove_file(&temporary);
     }

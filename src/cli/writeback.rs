@@ -17,8 +17,8 @@
 //! Where `sync_file_range` is not available (outside Linux with glibc), outputs are written
 //! as before.
 //!
-//! Meanwhile, the output being replaced gives back its cached pages ([`ReplacedFile`]), a
-//! chunk ahead of the write, so that the new file is written into them.
+//! Before that, the output being replaced gives back its cached pages
+//! ([`drop_cached_pages`]), so that the new file is written into them.
 
 use std::fs::File;
 use std::io::{IoSlice, Write};
@@ -37,31 +37,14 @@ const AVAILABLE: bool = cfg!(all(target_os = "linux", target_env = "gnu"));
 /// chunk on a second thread, then closes the file and runs `then` (the rename) while that
 /// thread may still be starting the last chunks: waiting for it first took up to 30 ms more
 /// where it lagged, and the rename starts whatever it has not.
-///
-/// `replaced`, the file the output replaces (see [`ReplacedFile`]), gives back its cached pages
-/// as the new one is written: its first chunk's before the write begins, the rest on a third
-/// thread that stays ahead of the write, which needs the second core only while the write runs.
-/// All at once before the write, the drop held it up 5–8 ms on the 2M sphere's 72 MB output;
-/// this way about 0.6 ms (see "The old output's pages, a chunk ahead" in docs/benchmarks.md).
 pub(super) fn write_then(
     file: File,
-    replaced: Option<ReplacedFile>,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
     then: impl FnOnce() -> std::io::Result<()>,
 ) -> std::io::Result<()> {
     std::thread::scope(|scope| {
-        let dropping = replaced.map(|old| {
-            old.drop_pages(0, CHUNK);
-            scope.spawn(move || old.drop_pages(CHUNK, old.len.saturating_sub(CHUNK)))
-        });
         let mut out = ChunkedWriter::new(&file, scope);
-        let written = write(&mut out);
-        // The old file's pages are all given back by now (the drop runs at several times the
-        // write's pace), and its handle is closed before the rename, which frees the file.
-        if let Some(dropping) = dropping {
-            let _ = dropping.join();
-        }
-        written?;
+        write(&mut out)?;
         // The channel closes with `out`, and the thread ends after the chunks it was told of,
         // closing its own handle of the file.
         drop(out);
@@ -160,10 +143,10 @@ impl Write for ChunkedWriter<'_, '_, '_> {
     }
 }
 
-/// The file an output replaces, whose pages are dropped from the page cache as the new output
-/// is written ([`write_then`]), so that the new output's pages can be the old one's instead of
-/// memory the machine has not touched lately. The rename frees those pages anyway, but only
-/// once the new file has been written beside them.
+/// Drops from the page cache the pages of the file `path` names, which the caller is about to
+/// replace, so that the new output's pages can be the old one's instead of memory the machine
+/// has not touched lately. The rename frees those pages anyway, but only once the new file has
+/// been written beside them.
 ///
 /// On this project's machines (virtual machines whose host backs guest memory only once it is
 /// used, and takes back memory the guest has left free for a while), a write into pages of such
@@ -178,58 +161,28 @@ impl Write for ChunkedWriter<'_, '_, '_> {
 /// stay, and dirty pages are not dropped (the kernel starts their writeback instead: wasted
 /// where another program wrote the old file moments ago and never flushed it, since a file
 /// replaced is thrown away unwritten; tspace's own outputs have had their writeback started).
-pub(super) struct ReplacedFile {
-    #[cfg_attr(not(target_os = "linux"), allow(dead_code))]
-    file: File,
-    len: u64,
+#[cfg(target_os = "linux")]
+pub(super) fn drop_cached_pages(path: &std::path::Path) {
+    use std::os::fd::AsRawFd;
+    use std::os::unix::fs::MetadataExt;
+    let Ok(old) = File::open(path) else {
+        return;
+    };
+    let Ok(metadata) = old.metadata() else {
+        return;
+    };
+    if !metadata.is_file() || metadata.nlink() != 1 || metadata.len() < CHUNK {
+        return;
+    }
+    // SAFETY: the descriptor is that of `old`, open for the whole call, and the call takes no
+    // memory of ours: only numbers. It is advice; where it fails, the rename frees the pages.
+    unsafe {
+        libc::posix_fadvise(old.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED);
+    }
 }
 
-impl ReplacedFile {
-    /// The file at `path`, if its pages are worth dropping before it is replaced.
-    #[cfg(target_os = "linux")]
-    pub(super) fn at(path: &std::path::Path) -> Option<ReplacedFile> {
-        use std::os::unix::fs::MetadataExt;
-        let file = File::open(path).ok()?;
-        let metadata = file.metadata().ok()?;
-        if !metadata.is_file() || metadata.nlink() != 1 || metadata.len() < CHUNK {
-            return None;
-        }
-        Some(ReplacedFile {
-            file,
-            len: metadata.len(),
-        })
-    }
-
-    #[cfg(not(target_os = "linux"))]
-    pub(super) fn at(_: &std::path::Path) -> Option<ReplacedFile> {
-        None
-    }
-
-    /// Drops the cached pages of `length` bytes from `offset`, a chunk at a time, so that each
-    /// chunk's pages are free as soon as they are dropped rather than after all of them.
-    #[cfg(target_os = "linux")]
-    fn drop_pages(&self, offset: u64, length: u64) {
-        use std::os::fd::AsRawFd;
-        let end = offset.saturating_add(length);
-        let mut at = offset;
-        while at < end {
-            let step = CHUNK.min(end - at);
-            let (Ok(from), Ok(len)) = (i64::try_from(at), i64::try_from(step)) else {
-                return;
-            };
-            // SAFETY: the descriptor is that of `self.file`, open for the whole call, and the
-            // call takes no memory of ours: only numbers. It is advice; where it fails, the
-            // rename frees the pages.
-            unsafe {
-                libc::posix_fadvise(self.file.as_raw_fd(), from, len, libc::POSIX_FADV_DONTNEED);
-            }
-            at += step;
-        }
-    }
-
-    #[cfg(not(target_os = "linux"))]
-    fn drop_pages(&self, _: u64, _: u64) {}
-}
+#[cfg(not(target_os = "linux"))]
+pub(super) fn drop_cached_pages(_: &std::path::Path) {}
 
 /// Starts the writeback of `length` bytes of `file` from `offset`, waiting for no disk. A hint:
 /// where it fails, the rename starts them as before.
@@ -280,7 +233,6 @@ mod tests {
             let file = File::create(&path).expect("a new file");
             write_then(
                 file,
-                None,
                 |out| {
                     let (head, rest) = data.split_at(len / 3);
                     out.write_all(head)?;
@@ -318,7 +270,6 @@ mod tests {
         let big = vec![1u8; CHUNK as usize + 100];
         write_then(
             file,
-            None,
             |out| {
                 let first = out.write(&big[..100])?;
                 assert_eq!(first, 100);
@@ -350,62 +301,6 @@ mod tests {
             assert_eq!(out.announced, if AVAILABLE { CHUNK } else { 0 });
         });
         let _ = std::fs::remove_dir_all(&dir);
-    }
-
-    /// Replacing a file through [`write_then`] with its [`ReplacedFile`]: the new bytes arrive
-    /// whole under the old name, and the old file's pages were given back while they were
-    /// written (checked on a second name for the old file taken after it was looked at, where
-    /// the file system drops pages it is advised to; elsewhere only the bytes are checked).
-    #[cfg(target_os = "linux")]
-    #[test]
-    fn a_replaced_file_gives_back_its_pages_while_the_new_one_is_written() {
-        let dir = scratch("replace");
-        let path = dir.join("out.glb");
-        let old_len = 3 * CHUNK as usize + 123;
-        let mut old = File::create(&path).expect("a new file");
-        old.write_all(&vec![1u8; old_len]).expect("written");
-        old.sync_all()
-            .expect("on disk, so that its pages are clean");
-        let replaced = ReplacedFile::at(&path).expect("a lone large file is dropped");
-        assert_eq!(replaced.len, old_len as u64);
-        // Another name for the old file, to look at its pages after the rename.
-        let kept = dir.join("old.glb");
-        std::fs::hard_link(&path, &kept).expect("a second link");
-        let before = resident_pages(&kept);
-        let data: Vec<u8> = (0..2 * CHUNK as usize + 9)
-            .map(|i| (i % 253) as u8)
-            .collect();
-        let temporary = dir.join(".out.glb.tmp");
-        let file = File::create(&temporary).expect("a new file");
-        write_then(
-            file,
-            Some(replaced),
-            |out| out.write_all(&data),
-            || std::fs::rename(&temporary, &path),
-        )
-        .expect("written");
-        let mut back = Vec::new();
-        File::open(&path)
-            .and_then(|mut f| f.read_to_end(&mut back))
-            .expect("read back");
-        let after = resident_pages(&kept);
-        // A control: a file advised directly, on the same file system.
-        let control = dir.join("control");
-        let mut file = File::create(&control).expect("a new file");
-        file.write_all(&vec![2u8; CHUNK as usize]).expect("written");
-        file.sync_all().expect("on disk");
-        let control_before = resident_pages(&control);
-        ReplacedFile::at(&control)
-            .expect("a lone file of a chunk")
-            .drop_pages(0, CHUNK);
-        let drops = resident_pages(&control) <= control_before / 2;
-        let _ = std::fs::remove_dir_all(&dir);
-        assert!(back == data, "the new bytes, whole");
-        if before > 0 && drops {
-            assert!(after < before / 2, "{before} -> {after} pages");
-        } else {
-            eprintln!("no cached pages this file system drops; only the bytes were checked");
-        }
     }
 
     /// How many of the file's pages are in the page cache, by `mincore` over a map of it.
@@ -463,9 +358,7 @@ mod tests {
         let small = write_synced("small", 64 << 10);
         let before = [&lone, &linked, &small].map(|p| resident_pages(p));
         for path in [&lone, &linked, &small] {
-            if let Some(replaced) = ReplacedFile::at(path) {
-                replaced.drop_pages(0, replaced.len);
-            }
+            drop_cached_pages(path);
         }
         let after = [&lone, &linked, &small].map(|p| resident_pages(p));
         let _ = std::fs::remove_dir_all(&dir);
