@@ -361,6 +361,8 @@ fn finish_block(
     }
     columns.compute();
     for (k, (sums, tangents)) in block.iter().zip(finished.iter_mut()).enumerate() {
+        // The caller's array holds the block before's; a side not taken is left zero.
+        *tangents = ([[0.0; 4]; 2], [false; 2]);
         let taken = sums.sides_taken();
         let first = columns.side[k] as usize;
         for side in 0..2 {
