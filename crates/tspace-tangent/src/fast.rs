@@ -613,13 +613,15 @@ fn generate_by_vertex(
                 len = 0;
             }
         }
-        write_block(
-            &classes[..len],
-            &block[..len],
-            &mut columns,
-            &mut repairs,
-            &mut put,
-        );
+        if len > 0 {
+            write_block(
+                &classes[..len],
+                &block[..len],
+                &mut columns,
+                &mut repairs,
+                &mut put,
+            );
+        }
         (copies, repairs)
     };
     let results: Vec<(Copies, Vec<(u32, Problem)>)> = table
