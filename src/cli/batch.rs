@@ -151,9 +151,20 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
+    write_atomically_from(path, (), |(), out| write(out))
+}
+
+/// As [`write_atomically`], for a `write` that reads only `held` (an output's pieces and the
+/// input they refer to), which is let go once the output is written, while the rename runs
+/// (see `writeback::write_then`).
+pub fn write_atomically_from<T: Send>(
+    path: &Path,
+    held: T,
+    write: impl FnOnce(&T, &mut dyn std::io::Write) -> std::io::Result<()>,
+) -> std::io::Result<()> {
     if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
         let mut special = std::fs::OpenOptions::new().write(true).open(path)?;
-        return write(&mut special);
+        return write(&held, &mut special);
     }
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)?;
@@ -165,8 +176,9 @@ pub fn write_atomically(
     name.push(path.file_name().unwrap_or_default());
     name.push(format!(".tspace-tmp-{}", std::process::id()));
     let temporary = path.with_file_name(name);
-    let result = std::fs::File::create(&temporary)
-        .and_then(|file| writeback::write_then(file, write, || std::fs::rename(&temporary, path)));
+    let result = std::fs::File::create(&temporary).and_then(|file| {
+        writeback::write_then(file, held, write, || std::fs::rename(&temporary, path))
+    });
     if result.is_err() {
         let _ = std::fs::remove_file(&temporary);
     }
@@ -183,10 +195,21 @@ fn write_with(
     output: &Path,
     write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> Result<(), Failure> {
+    write_from(output, (), |(), out| write(out))
+}
+
+/// Writes one output with `write`, which reads only `held`: to standard output for `-`, else to
+/// its file, letting `held` go while the file is renamed into place (see
+/// [`write_atomically_from`]).
+fn write_from<T: Send>(
+    output: &Path,
+    held: T,
+    write: impl FnOnce(&T, &mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<(), Failure> {
     let written = if is_dash(output) {
-        stdio::with_stdout(|out| write(out))
+        stdio::with_stdout(|out| write(&held, out))
     } else {
-        write_atomically(output, |file| write(file))
+        write_atomically_from(output, held, write)
     };
     written.map_err(|e| Failure {
         exit: Exit::Write,
@@ -215,12 +238,16 @@ fn process_one(
         in_pieces: true,
         ..options.clone()
     };
-    let (processed, held) = process_file(file, &options)?;
-    match (&processed.pieces, &held) {
-        (Some(pieces), Some(bytes)) => write_with(output, |out| pieces.write_to(bytes, out))?,
+    let (mut processed, held) = process_file(file, &options)?;
+    match (processed.pieces.take(), held) {
+        (Some(pieces), Some(bytes)) => {
+            write_from(output, (pieces, bytes), |(pieces, bytes), out| {
+                pieces.write_to(bytes, out)
+            })?
+        }
         // An OBJ's: they hold the GLB it was converted to.
         (Some(pieces), None) if pieces.hold_their_input() => {
-            write_with(output, |out| pieces.write_to(&[], out))?
+            write_from(output, pieces, |pieces, out| pieces.write_to(&[], out))?
         }
         (Some(_), None) => {
             return Err(SceneError::new(
