@@ -337,23 +337,19 @@ fn run_in_process(scene: &Scene, out: &Path) -> Phases {
     let processed =
         input::process(scene.kind, &bytes, &NoResources, &options).expect("the scene processes");
     let written = Instant::now();
-    // Through a temporary file renamed over the last round's output, as the command line
-    // writes (`tspace::cli::write_atomically`).
-    tspace::cli::write_atomically(out, |output| match &processed.pieces {
+    let write_output = |output: &mut dyn std::io::Write| match &processed.pieces {
         Some(pieces) => pieces.write_to(&bytes, output),
         None => output.write_all(processed.bytes.as_deref().unwrap_or_default()),
-    })
-    .expect("output written");
+    };
+    // Through a temporary file renamed over the last round's output, as the command line
+    // writes (`tspace::cli::write_atomically`).
+    tspace::cli::write_atomically(out, write_output).expect("output written");
     let write = written.elapsed().as_secs_f64();
     let fresh = out.with_file_name("out-new.glb");
     // Untimed: removing the last round's frees its blocks here instead.
     let _ = std::fs::remove_file(&fresh);
     let written_new = Instant::now();
-    tspace::cli::write_atomically(&fresh, |output| match &processed.pieces {
-        Some(pieces) => pieces.write_to(&bytes, output),
-        None => output.write_all(processed.bytes.as_deref().unwrap_or_default()),
-    })
-    .expect("output written");
+    tspace::cli::write_atomically(&fresh, write_output).expect("output written");
     let write_new = written_new.elapsed().as_secs_f64();
     let steps = processed
         .timings
