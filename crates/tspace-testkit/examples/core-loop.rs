@@ -114,18 +114,11 @@ fn main() -> Result<(), String> {
     if std::env::var_os("CORE_LOOP_REMAP").is_some() {
         return time_meshopt_remap(&mesh, seconds);
     }
-    let mut times = Vec::new();
-    let start = Instant::now();
-    while start.elapsed().as_secs_f64() < seconds {
-        if let Some(idle) = idle {
-            std::thread::sleep(idle);
-        }
-        let t = Instant::now();
+    let times = time_calls(seconds, idle, || {
         let result = generate(&input, &options).map_err(|e| e.to_string())?;
-        times.push(t.elapsed().as_secs_f64());
         std::hint::black_box(result);
-    }
-    times.sort_by(f64::total_cmp);
+        Ok(())
+    })?;
     let at = |fraction: f64| times[((times.len() - 1) as f64 * fraction) as usize] * 1e3;
     println!(
         "{what}: {} triangles, {} vertices, {} calls, median {:.3} ms, best {:.3} ms \
@@ -148,17 +141,13 @@ fn time_meshopt_remap(mesh: &Mesh, seconds: f64) -> Result<(), String> {
     let vertices: Vec<[f32; 8]> = (mesh.positions.iter().zip(&mesh.normals).zip(&mesh.uvs))
         .map(|((p, n), t)| [p[0], p[1], p[2], n[0], n[1], n[2], t[0], t[1]])
         .collect();
-    let mut times = Vec::new();
     let mut classes = 0;
-    let start = Instant::now();
-    while times.is_empty() || start.elapsed().as_secs_f64() < seconds {
-        let call = Instant::now();
+    let times = time_calls(seconds, None, || {
         let (count, remap) = meshopt::generate_vertex_remap(&vertices, None);
-        times.push(call.elapsed().as_secs_f64());
         classes = count;
         std::hint::black_box(remap);
-    }
-    times.sort_by(f64::total_cmp);
+        Ok(())
+    })?;
     println!(
         "meshopt generateVertexRemap: {} vertices, {classes} classes, {} calls, median {:.3} ms",
         vertices.len(),
@@ -166,4 +155,25 @@ fn time_meshopt_remap(mesh: &Mesh, seconds: f64) -> Result<(), String> {
         times[times.len() / 2] * 1e3
     );
     Ok(())
+}
+
+/// Makes `call` for `seconds` (at least once), each after `idle` untimed if given, and returns
+/// each call's time in seconds, sorted.
+fn time_calls(
+    seconds: f64,
+    idle: Option<std::time::Duration>,
+    mut call: impl FnMut() -> Result<(), String>,
+) -> Result<Vec<f64>, String> {
+    let mut times = Vec::new();
+    let start = Instant::now();
+    while times.is_empty() || start.elapsed().as_secs_f64() < seconds {
+        if let Some(idle) = idle {
+            std::thread::sleep(idle);
+        }
+        let t = Instant::now();
+        call()?;
+        times.push(t.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times)
 }
